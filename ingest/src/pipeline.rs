@@ -1,0 +1,429 @@
+//! Forecast → CloudMap: spline upsampling per level, the critical-humidity formula per pixel
+//! (after interpolation), max over each layer's levels, 16-bit RGBA out (DESIGN §1.3–1.5).
+//!
+//! Rows are produced in parallel bands and streamed to the PNG encoder, so a 6500×5500 map never
+//! holds more than a few bands in memory.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::cloudmap::{write_atomic, CloudMap};
+use crate::error::{IngestError, Result};
+use crate::forecast::Forecast;
+use crate::meta::{AltitudeSource, CloudMapMeta, LayerKind, LayerMeta, SourceMeta, FORMAT};
+use crate::region::Region;
+use crate::spline::{Interp, Tap, WRAP_PAD};
+
+/// What the user asked of one ingest.
+#[derive(Debug, Clone)]
+pub struct IngestOptions {
+    pub region: Region,
+    pub width: u32,
+    pub height: u32,
+    /// Critical humidity per layer (low, middle, high), fractions in [0, 1).
+    pub rh_cr: [f64; 3],
+    pub interp: Interp,
+}
+
+/// Check a critical humidity: the formula divides by 1 − rh_cr.
+pub fn validate_rh_cr(x: f64) -> Result<f64> {
+    if !x.is_finite() || !(0.0..1.0).contains(&x) {
+        return Err(IngestError::BadRhCr(format!(
+            "rh_cr must be in [0, 1) (a fraction; the formula divides by 1 - rh_cr), got {x}"
+        )));
+    }
+    Ok(x)
+}
+
+/// Paper eq. 1–2: coverage from relative humidity (fractions).
+#[inline]
+pub fn coverage(rh: f64, rh_cr: f64) -> f64 {
+    let c = ((rh - rh_cr) / (1.0 - rh_cr)).clamp(0.0, 1.0);
+    c * c
+}
+
+/// One RH level prepared for fast row evaluation.
+struct PreparedLevel {
+    layer: usize,
+    rh_cr: f64,
+    ni: usize,
+    /// Row-major values and their north–south slopes.
+    y: Vec<f64>,
+    s: Vec<f64>,
+}
+
+/// A ready-to-run resampling of one forecast onto one region.
+pub struct Plan {
+    levels: Vec<PreparedLevel>,
+    rows: Vec<Tap>,
+    cols: Vec<Tap>,
+    /// Column of the padded axis → grid column.
+    pad_map: Vec<usize>,
+    interp: Interp,
+    width: usize,
+    height: usize,
+    pub meta: CloudMapMeta,
+}
+
+impl Plan {
+    pub fn new(fc: &Forecast, opts: &IngestOptions) -> Result<Plan> {
+        opts.region.validate()?;
+        for x in opts.rh_cr {
+            validate_rh_cr(x)?;
+        }
+        let grid = fc.levels[0].field.grid.clone();
+        let (ni, nj) = (grid.ni, grid.nj);
+        let (w, h) = (opts.width as usize, opts.height as usize);
+        let r = &opts.region;
+        let global = grid.is_global();
+        let outside = |what: String| {
+            IngestError::BadRegion(format!(
+                "{what} lies outside the grid of {} (lat {}..{}, lon {}..{})",
+                fc.path.display(),
+                grid.south(),
+                grid.north(),
+                grid.west(),
+                grid.west() + (ni - 1) as f64 * grid.di
+            ))
+        };
+        // Rows: fractional row index from the north.
+        let rows = (0..h)
+            .map(|j| {
+                let v = (grid.north() - r.pixel_lat(j, h)) / grid.dj;
+                if v < -1e-9 || v > (nj - 1) as f64 + 1e-9 {
+                    return Err(outside(format!("latitude {:.4}", r.pixel_lat(j, h))));
+                }
+                Ok(Tap::at(opts.interp, v, nj))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let pad = if global { WRAP_PAD } else { 0 };
+        let n_pad = ni + 2 * pad;
+        let pad_map: Vec<usize> = (0..n_pad)
+            .map(|k| (k as isize - pad as isize).rem_euclid(ni as isize) as usize)
+            .collect();
+        let cols = (0..w)
+            .map(|i| {
+                let lon = r.pixel_lon(i, w);
+                let u = (lon - grid.west()).rem_euclid(360.0) / grid.di;
+                if !global && u > (ni - 1) as f64 + 1e-9 {
+                    return Err(outside(format!("longitude {lon:.4}")));
+                }
+                Ok(Tap::at(opts.interp, u + pad as f64, n_pad))
+            })
+            .collect::<Result<Vec<_>>>()?;
+
+        let mut levels = Vec::with_capacity(fc.levels.len());
+        for l in &fc.levels {
+            let kind = LayerKind::of_pressure_hpa(l.pressure_hpa);
+            let y = l.field.values.clone();
+            // North–south slopes, one column at a time.
+            let mut s = vec![0.0; y.len()];
+            let mut col = vec![0.0; nj];
+            let mut cs = vec![0.0; nj];
+            for i in 0..ni {
+                for j in 0..nj {
+                    col[j] = y[j * ni + i];
+                }
+                opts.interp.slopes(&col, &mut cs);
+                for j in 0..nj {
+                    s[j * ni + i] = cs[j];
+                }
+            }
+            levels.push(PreparedLevel {
+                layer: kind.channel(),
+                rh_cr: opts.rh_cr[kind.channel()],
+                ni,
+                y,
+                s,
+            });
+        }
+        let meta = build_meta(fc, opts, &grid)?;
+        Ok(Plan {
+            levels,
+            rows,
+            cols,
+            pad_map,
+            interp: opts.interp,
+            width: w,
+            height: h,
+            meta,
+        })
+    }
+
+    /// Coverage texels of rows `j0..j1` (RGBA 16-bit: low, middle, high, max).
+    pub fn rows(&self, j0: usize, j1: usize) -> Vec<[u16; 4]> {
+        let n_pad = self.pad_map.len();
+        let mut out = vec![[0u16; 4]; (j1 - j0) * self.width];
+        let mut acc = vec![[0f64; 3]; self.width];
+        let mut line = vec![0.0; n_pad];
+        let mut slopes = vec![0.0; n_pad];
+        for j in j0..j1 {
+            acc.iter_mut().for_each(|a| *a = [0.0; 3]);
+            let tap = &self.rows[j];
+            for lv in &self.levels {
+                // Evaluate the north–south spline of every grid column at this row's latitude.
+                let ni = lv.ni;
+                let (a, b) = (tap.i0 * ni, (tap.i0 + 1) * ni);
+                for (k, &c) in self.pad_map.iter().enumerate() {
+                    line[k] = tap.w[0] * lv.y[a + c]
+                        + tap.w[1] * lv.y[b + c]
+                        + tap.w[2] * lv.s[a + c]
+                        + tap.w[3] * lv.s[b + c];
+                }
+                // Then the west–east spline through those values at each pixel.
+                self.interp.slopes(&line, &mut slopes);
+                for (px, ct) in acc.iter_mut().zip(&self.cols) {
+                    let rh = (ct.eval(&line, &slopes).clamp(0.0, 100.0)) * 0.01;
+                    let cm = coverage(rh, lv.rh_cr);
+                    let slot = &mut px[lv.layer];
+                    if cm > *slot {
+                        *slot = cm;
+                    }
+                }
+            }
+            let row = &mut out[(j - j0) * self.width..(j - j0 + 1) * self.width];
+            for (t, a) in row.iter_mut().zip(&acc) {
+                let q = |v: f64| (v * 65535.0).round() as u16;
+                let (r, g, b) = (q(a[0]), q(a[1]), q(a[2]));
+                *t = [r, g, b, r.max(g).max(b)];
+            }
+        }
+        out
+    }
+
+    /// Build the whole map in memory (for the renderer, tests and live re-derivation).
+    pub fn build(&self) -> CloudMap {
+        let bands = self.bands();
+        let texels: Vec<[u16; 4]> = bands
+            .par_iter()
+            .map(|&(a, b)| self.rows(a, b))
+            .collect::<Vec<_>>()
+            .concat();
+        let mut meta = self.meta.clone();
+        fill_stats(&mut meta, &texels);
+        CloudMap { meta, texels }
+    }
+
+    fn bands(&self) -> Vec<(usize, usize)> {
+        let band = 32;
+        (0..self.height.div_ceil(band))
+            .map(|b| (b * band, ((b + 1) * band).min(self.height)))
+            .collect()
+    }
+
+    /// Stream the map to `png` (and its sidecar), computing bands in parallel; atomic.
+    /// `progress` is called with the number of rows done.
+    pub fn write(&self, png_path: &Path, progress: &(dyn Fn(usize) + Sync)) -> Result<PathBuf> {
+        let mut meta = self.meta.clone();
+        meta.image = png_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let bands = self.bands();
+        let mut stats = Stats::default();
+        write_atomic(png_path, |w| {
+            let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
+            enc.set_color(png::ColorType::Rgba);
+            enc.set_depth(png::BitDepth::Sixteen);
+            enc.set_compression(png::Compression::Fast);
+            let mut wr = enc.write_header().map_err(|e| e.to_string())?;
+            let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
+            let mut done = 0;
+            // A few bands per core at a time bounds memory; order is kept by `collect`.
+            for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
+                let parts: Vec<Vec<[u16; 4]>> =
+                    chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
+                for (p, &(a, b)) in parts.iter().zip(chunk) {
+                    stats.add(p);
+                    let mut bytes = Vec::with_capacity(p.len() * 8);
+                    for t in p {
+                        for c in t {
+                            bytes.extend_from_slice(&c.to_be_bytes());
+                        }
+                    }
+                    sw.write_all(&bytes).map_err(|e| e.to_string())?;
+                    done += b - a;
+                }
+                progress(done);
+            }
+            sw.finish().map_err(|e| e.to_string())
+        })?;
+        stats.apply(&mut meta);
+        let sidecar = png_path.with_extension("json");
+        let json = serde_json::to_string_pretty(&meta).map_err(|e| IngestError::Write {
+            path: sidecar.clone(),
+            msg: e.to_string(),
+        })?;
+        if let Err(e) = write_atomic(&sidecar, |w| {
+            w.write_all(json.as_bytes()).map_err(|e| e.to_string())
+        }) {
+            // Never leave a PNG without its sidecar.
+            let _ = std::fs::remove_file(png_path);
+            return Err(e);
+        }
+        Ok(sidecar)
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+}
+
+#[derive(Default)]
+struct Stats {
+    sum: [f64; 3],
+    max: [u16; 3],
+    n: usize,
+}
+
+impl Stats {
+    fn add(&mut self, texels: &[[u16; 4]]) {
+        for t in texels {
+            for c in 0..3 {
+                self.sum[c] += t[c] as f64;
+                self.max[c] = self.max[c].max(t[c]);
+            }
+        }
+        self.n += texels.len();
+    }
+    fn apply(&self, meta: &mut CloudMapMeta) {
+        for l in &mut meta.layers {
+            let c = l.channel;
+            l.mean_coverage = self.sum[c] / 65535.0 / self.n.max(1) as f64;
+            l.max_coverage = self.max[c] as f64 / 65535.0;
+        }
+    }
+}
+
+fn fill_stats(meta: &mut CloudMapMeta, texels: &[[u16; 4]]) {
+    let mut s = Stats::default();
+    s.add(texels);
+    s.apply(meta);
+}
+
+/// ICAO standard atmosphere altitude (m) of a pressure (hPa), troposphere and lower stratosphere.
+pub fn standard_altitude_m(p_hpa: f64) -> f64 {
+    if p_hpa >= 226.32 {
+        44330.8 * (1.0 - (p_hpa / 1013.25).powf(0.190263))
+    } else {
+        11000.0 - 6341.6 * (p_hpa / 226.32).ln()
+    }
+}
+
+fn build_meta(
+    fc: &Forecast,
+    opts: &IngestOptions,
+    grid: &crate::grib::LatLonGrid,
+) -> Result<CloudMapMeta> {
+    let pressures = fc.pressures();
+    // Altitude of every loaded level: gh where present, else the standard atmosphere.
+    let z: Vec<(f64, bool)> = pressures
+        .iter()
+        .map(|&p| match fc.mean_gh(p, &opts.region) {
+            Some(z) => (z, true),
+            None => (standard_altitude_m(p), false),
+        })
+        .collect();
+    let mut layers = Vec::new();
+    for kind in LayerKind::ALL {
+        let idx: Vec<usize> = (0..pressures.len())
+            .filter(|&i| LayerKind::of_pressure_hpa(pressures[i]) == kind)
+            .collect();
+        let (Some(&lo), Some(&hi)) = (idx.first(), idx.last()) else {
+            continue;
+        };
+        // A level stands for the air half-way to its neighbours; at the ends of the loaded set
+        // the neighbour is a standard-atmosphere level 10 % of pressure away.
+        let below = if lo > 0 {
+            z[lo - 1].0
+        } else {
+            standard_altitude_m(pressures[lo] * 1.1)
+                + (z[lo].0 - standard_altitude_m(pressures[lo]))
+        };
+        let above = if hi + 1 < z.len() {
+            z[hi + 1].0
+        } else {
+            standard_altitude_m(pressures[hi] / 1.1)
+                + (z[hi].0 - standard_altitude_m(pressures[hi]))
+        };
+        let base_m = (0.5 * (z[lo].0 + below)).max(0.0);
+        let top_m = 0.5 * (z[hi].0 + above);
+        layers.push(LayerMeta {
+            kind,
+            channel: kind.channel(),
+            levels_hpa: idx.iter().map(|&i| pressures[i]).collect(),
+            rh_cr: opts.rh_cr[kind.channel()],
+            base_m,
+            top_m: top_m.max(base_m + 100.0),
+            altitude_source: if idx.iter().all(|&i| z[i].1) {
+                AltitudeSource::GeopotentialHeight
+            } else {
+                AltitudeSource::StandardAtmosphere
+            },
+            mean_coverage: 0.0,
+            max_coverage: 0.0,
+        });
+    }
+    let fmt_t = |t: Option<chrono::DateTime<chrono::Utc>>| {
+        t.map(|t| t.to_rfc3339_opts(chrono::SecondsFormat::Secs, true))
+            .unwrap_or_default()
+    };
+    let valid = match (fc.reference_time, fc.step_hours) {
+        (Some(r), Some(s)) => Some(r + chrono::Duration::seconds((s * 3600.0).round() as i64)),
+        _ => None,
+    };
+    Ok(CloudMapMeta {
+        format: FORMAT.into(),
+        image: String::new(),
+        region: opts.region,
+        width: opts.width,
+        height: opts.height,
+        layers,
+        interpolation: opts.interp.name().into(),
+        source: SourceMeta {
+            file: fc.path.display().to_string(),
+            reference_time: fmt_t(fc.reference_time),
+            forecast_step_h: fc.step_hours.unwrap_or(0.0),
+            valid_time: fmt_t(valid),
+            grid_ni: grid.ni,
+            grid_nj: grid.nj,
+            grid_di_deg: grid.di,
+            grid_dj_deg: grid.dj,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coverage_formula_at_its_edges() {
+        assert_eq!(coverage(0.65, 0.65), 0.0);
+        assert_eq!(coverage(0.0, 0.65), 0.0);
+        assert_eq!(coverage(1.0, 0.65), 1.0);
+        assert!((coverage(0.825, 0.65) - 0.25).abs() < 1e-12);
+        assert_eq!(coverage(0.5, 0.0), 0.25);
+        assert!(coverage(0.99995, 0.9999).is_finite());
+        assert!(validate_rh_cr(1.0).is_err());
+        assert!(validate_rh_cr(1.5).is_err());
+        assert!(validate_rh_cr(f64::NAN).is_err());
+        assert!(validate_rh_cr(-0.1).is_err());
+        assert_eq!(validate_rh_cr(0.0).unwrap(), 0.0);
+    }
+
+    #[test]
+    fn standard_atmosphere_is_monotonic_and_sane() {
+        assert!(standard_altitude_m(1013.25).abs() < 1.0);
+        assert!((standard_altitude_m(500.0) - 5574.0).abs() < 30.0);
+        assert!((standard_altitude_m(226.32) - 11000.0).abs() < 5.0);
+        let mut prev = -1.0;
+        for p in (10..=1000).rev().step_by(10) {
+            let z = standard_altitude_m(p as f64);
+            assert!(z > prev);
+            prev = z;
+        }
+    }
+}

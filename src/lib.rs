@@ -1,0 +1,4 @@
+//! `stratus`: the renderer, the scorer and the app around a CloudMap made by `stratus-ingest`.
+
+pub mod cmd;
+pub mod render;

@@ -1,0 +1,50 @@
+//! The `stratus` command line: inspect, ingest, render, score, fly.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use stratus::cmd;
+
+#[derive(Parser)]
+#[command(
+    name = "stratus",
+    version,
+    about = "Weather-data-driven volumetric clouds for flight simulation"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the messages of a GRIB file, one row each (headers only, no decoding).
+    Inspect(cmd::inspect::Args),
+    /// GRIB2 relative humidity → CloudMap PNG + JSON sidecar.
+    Ingest(cmd::ingest::Args),
+    /// Render one frame of a CloudMap to PNG, headless.
+    Render(cmd::render::Args),
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Ingest(a) => cmd::ingest::run(a),
+        Command::Render(a) => cmd::render::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            // One line: the chain of causes joined, the file named by the innermost error.
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! The wgpu cloud renderer (DESIGN §2–4).
