@@ -2,3 +2,4 @@
 
 pub mod cmd;
 pub mod render;
+pub mod score;

@@ -80,9 +80,10 @@ fn rh(lon: f64, lat: f64, hpa: f64, noise: &Waves) -> f64 {
 
     // Subtropical high: subsidence dries the middle troposphere...
     let high = gauss(lon + 16.0, lat - 35.0, 7.0, 4.5);
-    v -= 50.0 * high * (1.0 - (2.0 * (z - 0.45)).powi(2)).max(0.2);
+    let aloft = ((z - 0.1) / 0.25).clamp(0.0, 1.0);
+    v -= 50.0 * high * aloft * (1.0 - (2.0 * (z - 0.45)).powi(2)).max(0.2);
     // ...over a moist marine layer (stratocumulus at 1000–925 hPa).
-    v += 40.0 * high * (1.0 - z / 0.15).clamp(0.0, 1.0);
+    v += 38.0 * high * (1.0 - z / 0.25).clamp(0.0, 1.0);
 
     // Deep convective cells in the warm sector with anvils spreading at 300–250 hPa.
     for &(clon, clat, r) in &[(-33.0, 34.0, 1.1), (-27.5, 36.5, 0.9), (-22.0, 33.0, 1.3)] {

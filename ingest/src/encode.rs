@@ -24,6 +24,8 @@ pub struct Grib2Field {
     pub ni: u32,
     pub nj: u32,
     /// First grid point (lat1 is the northernmost row with scanning mode 0), degrees.
+    /// Longitudes may be 0–360 (as GFS writes them) or negative (written sign-and-magnitude;
+    /// note gribberish 1.9 reads longitudes as unsigned and misplaces negative ones).
     pub lat1: f64,
     pub lon1: f64,
     /// Last grid point, degrees.

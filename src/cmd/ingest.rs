@@ -28,7 +28,7 @@ pub struct IngestOpts {
     #[arg(long, default_value_t = DEFAULT_TOP_HPA)]
     pub top_hpa: f64,
     /// Critical humidity for every layer (fraction, 0 ≤ x < 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rh_cr: Option<f64>,
     #[arg(long, default_value_t = 0.80)]
     pub rh_cr_low: f64,
