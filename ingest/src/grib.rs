@@ -767,10 +767,8 @@ fn validate_for_decode(bytes: &[u8], info: &MessageInfo) -> Result<LatLonGrid, G
         }
     }
     let bits = s5.u8(20)? as u64;
-    if info.packing_template == 0 || info.packing_template == 41 || info.packing_template == 42 {
-        if bits > 32 {
-            return Err(corrupt(format!("{bits} bits per value (at most 32)")));
-        }
+    if matches!(info.packing_template, 0 | 41 | 42) && bits > 32 {
+        return Err(corrupt(format!("{bits} bits per value (at most 32)")));
     }
     if info.packing_template == 0 && data_len * 8 < bits * info.packed_values {
         return Err(corrupt(format!(

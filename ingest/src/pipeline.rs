@@ -281,9 +281,9 @@ struct Stats {
 impl Stats {
     fn add(&mut self, texels: &[[u16; 4]]) {
         for t in texels {
-            for c in 0..3 {
-                self.sum[c] += t[c] as f64;
-                self.max[c] = self.max[c].max(t[c]);
+            for ((sum, max), &v) in self.sum.iter_mut().zip(&mut self.max).zip(t) {
+                *sum += v as f64;
+                *max = (*max).max(v);
             }
         }
         self.n += texels.len();

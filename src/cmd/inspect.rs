@@ -17,8 +17,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("{}: cannot read", args.file.display()))?;
     let msgs = grib::scan(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
     println!(
-        "{:>6} {:>9}  {:<7} {:<6} {:<28} {:<44} {:<24} {} {}",
-        "#", "offset", "d.c.n", "name", "level", "grid", "packing", "reference", "step"
+        "{:>6} {:>9}  {:<7} {:<6} {:<28} {:<44} {:<24} reference step",
+        "#", "offset", "d.c.n", "name", "level", "grid", "packing"
     );
     for m in &msgs {
         println!("{m}");
