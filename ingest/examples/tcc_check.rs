@@ -31,8 +31,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("file {}  region {:?}", path.display(), region);
     println!("| layer | GFS tcc level | grid points | tcc ≥ 50 % | RH-derived CM ≥ 0.1 | Dice | Dice (tcc ≥ 20 %, CM > 0) | corr(tcc, CM) |");
     println!("|---|---|---|---|---|---|---|---|");
-    for (kind, lt) in [(LayerKind::Low, 214u8), (LayerKind::Middle, 224), (LayerKind::High, 234)] {
-        let Some(m) = msgs.iter().find(|m| (m.discipline, m.category, m.number) == (0, 6, 1) && m.level_type == lt) else {
+    for (kind, lt) in [
+        (LayerKind::Low, 214u8),
+        (LayerKind::Middle, 224),
+        (LayerKind::High, 234),
+    ] {
+        let Some(m) = msgs
+            .iter()
+            .find(|m| (m.discipline, m.category, m.number) == (0, 6, 1) && m.level_type == lt)
+        else {
             println!("| {} | absent | | | | | | |", kind.name());
             continue;
         };
@@ -67,12 +74,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 b += y as usize;
                 ab += (x && y) as usize;
             }
-            (a, b, if a + b == 0 { 1.0 } else { 2.0 * ab as f64 / (a + b) as f64 })
+            (
+                a,
+                b,
+                if a + b == 0 {
+                    1.0
+                } else {
+                    2.0 * ab as f64 / (a + b) as f64
+                },
+            )
         };
         let (a, b, d1) = dice(50.0, 0.1, false);
         let (_, _, d2) = dice(20.0, 0.0, true);
         let n = pts.len() as f64;
-        let (mt, mc) = pts.iter().fold((0.0, 0.0), |s, p| (s.0 + p.0 / n, s.1 + p.1 / n));
+        let (mt, mc) = pts
+            .iter()
+            .fold((0.0, 0.0), |s, p| (s.0 + p.0 / n, s.1 + p.1 / n));
         let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
         for &(t, c) in &pts {
             sxy += (t - mt) * (c - mc);
