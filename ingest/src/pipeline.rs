@@ -269,6 +269,21 @@ impl Plan {
     pub fn height(&self) -> usize {
         self.height
     }
+
+    /// Change the critical humidities (low, middle, high) without re-reading the file: the RH
+    /// and its slopes stay in memory, so a live control panel re-derives the map by `build`.
+    pub fn set_rh_cr(&mut self, rh_cr: [f64; 3]) -> Result<()> {
+        for x in rh_cr {
+            validate_rh_cr(x)?;
+        }
+        for lv in &mut self.levels {
+            lv.rh_cr = rh_cr[lv.layer];
+        }
+        for l in &mut self.meta.layers {
+            l.rh_cr = rh_cr[l.channel];
+        }
+        Ok(())
+    }
 }
 
 #[derive(Default)]

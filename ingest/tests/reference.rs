@@ -75,3 +75,32 @@ fn cheaper_methods_err_more_than_the_spline() {
         assert!(mae > spline, "{m} MAE {mae} not above spline {spline}");
     }
 }
+
+#[test]
+fn rh_cr_extremes_stay_finite_and_ordered() {
+    // rh_cr 0: any humidity is cloud; rh_cr 0.9999: only saturated air; 1.0 is refused.
+    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let fc = Forecast::open(&gfs, LevelSelect::One(400.0)).unwrap();
+    let mut plan = Plan::new(
+        &fc,
+        &IngestOptions {
+            region: Region::parse("0,55,39,105").unwrap(),
+            width: 66,
+            height: 55,
+            rh_cr: [0.0; 3],
+            interp: Interp::Spline,
+        },
+    )
+    .unwrap();
+    let mean = |m: &stratus_ingest::CloudMap| {
+        m.texels.iter().map(|t| t[3] as f64).sum::<f64>() / m.texels.len() as f64 / 65535.0
+    };
+    let all = mean(&plan.build());
+    plan.set_rh_cr([0.65; 3]).unwrap();
+    let paper = mean(&plan.build());
+    plan.set_rh_cr([0.9999; 3]).unwrap();
+    let saturated = mean(&plan.build());
+    println!("mean cover at rh_cr 0 / 0.65 / 0.9999: {all:.4} / {paper:.4} / {saturated:.6}");
+    assert!(all > paper && paper > saturated && saturated >= 0.0);
+    assert!(plan.set_rh_cr([1.0, 0.5, 0.5]).is_err());
+}
