@@ -35,7 +35,13 @@ pub fn compare(render: &[bool], map: &[bool]) -> Similarity {
         b += y as usize;
         ab += (x && y) as usize;
     }
-    let ratio = |num: usize, den: usize| if den == 0 { 1.0 } else { num as f64 / den as f64 };
+    let ratio = |num: usize, den: usize| {
+        if den == 0 {
+            1.0
+        } else {
+            num as f64 / den as f64
+        }
+    };
     Similarity {
         render_px: a,
         map_px: b,

@@ -8,7 +8,9 @@ use std::process::Command;
 use stratus_ingest::encode::fixtures;
 
 fn shared(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared")
+        .join(rel)
 }
 
 fn stratus(args: &[&str]) -> std::process::Output {
@@ -31,13 +33,20 @@ fn expect_refused(input: &Path, extra: &[&str], needle: &str, names_file: bool) 
     args.extend_from_slice(&["--out", out.to_str().unwrap()]);
     let o = stratus(&args);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{input:?} {extra:?}: stderr {err}");
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{input:?} {extra:?}: stderr {err}"
+    );
     assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(err.contains(needle), "expected '{needle}' in: {err}");
     if names_file {
         let name = input.file_name().unwrap().to_string_lossy();
-        assert!(err.contains(name.as_ref()), "error does not name the file: {err}");
+        assert!(
+            err.contains(name.as_ref()),
+            "error does not name the file: {err}"
+        );
     }
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "output left behind: {left:?}");
@@ -62,16 +71,32 @@ fn real_gfs_file_ingests_and_inspects() {
 
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ea.png");
-    let o = stratus(&["ingest", gfs.to_str().unwrap(), "--region", "0,55,39,105", "--size", "260x220", "--out", out.to_str().unwrap()]);
+    let o = stratus(&[
+        "ingest",
+        gfs.to_str().unwrap(),
+        "--region",
+        "0,55,39,105",
+        "--size",
+        "260x220",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let map = stratus_ingest::CloudMap::load(&out.with_extension("json")).unwrap();
     assert_eq!(map.meta.layers.len(), 3);
     assert_eq!(map.meta.source.valid_time, "2011-01-15T12:00:00Z");
     for l in &map.meta.layers {
-        assert_eq!(l.altitude_source, stratus_ingest::meta::AltitudeSource::GeopotentialHeight);
+        assert_eq!(
+            l.altitude_source,
+            stratus_ingest::meta::AltitudeSource::GeopotentialHeight
+        );
         assert!(l.mean_coverage > 0.0 && l.max_coverage <= 1.0, "{l:?}");
     }
-    let (low, mid, high) = (&map.meta.layers[0], &map.meta.layers[1], &map.meta.layers[2]);
+    let (low, mid, high) = (
+        &map.meta.layers[0],
+        &map.meta.layers[1],
+        &map.meta.layers[2],
+    );
     assert!(low.top_m <= mid.base_m + 1.0 && mid.top_m <= high.base_m + 1.0);
     assert!(high.top_m > 12_000.0 && high.top_m < 18_000.0, "{high:?}");
     // A is the max of R, G, B everywhere.
@@ -85,7 +110,16 @@ fn dateline_region_in_both_conventions_gives_the_same_map() {
     let mut maps = Vec::new();
     for (i, region) in ["10,50,150,-150", "10,50,150,210"].iter().enumerate() {
         let out = dir.path().join(format!("d{i}.png"));
-        let o = stratus(&["ingest", gfs.to_str().unwrap(), "--region", region, "--size", "120x80", "--out", out.to_str().unwrap()]);
+        let o = stratus(&[
+            "ingest",
+            gfs.to_str().unwrap(),
+            "--region",
+            region,
+            "--size",
+            "120x80",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         maps.push(stratus_ingest::CloudMap::load(&out.with_extension("json")).unwrap());
     }
@@ -98,7 +132,18 @@ fn all_zero_rh_gives_an_all_zero_map() {
     let f = shared("data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("zero.png");
-    let o = stratus(&["ingest", f.to_str().unwrap(), "--level", "0.7", "--region", "-60,60,-180,180", "--size", "360x180", "--out", out.to_str().unwrap()]);
+    let o = stratus(&[
+        "ingest",
+        f.to_str().unwrap(),
+        "--level",
+        "0.7",
+        "--region",
+        "-60,60,-180,180",
+        "--size",
+        "360x180",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let map = stratus_ingest::CloudMap::load(&out.with_extension("json")).unwrap();
     assert!(map.texels.iter().all(|t| *t == [0; 4]));
@@ -119,11 +164,23 @@ fn bad_files_are_refused_cleanly() {
     let d = dir.path();
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("empty.grib2", vec![], "empty file"),
-        ("text.grib2", b"this is a forecast, honest\n".to_vec(), "not a GRIB file"),
+        (
+            "text.grib2",
+            b"this is a forecast, honest\n".to_vec(),
+            "not a GRIB file",
+        ),
         ("ed1.grib", fixtures::grib1_rh(), "edition 1"),
         ("cut.grib2", fixtures::truncated(), "cut off"),
-        ("random.grib2", fixtures::random_bytes(0x5eed, 4096), "not a GRIB file"),
-        ("bpv.grib2", fixtures::bits_per_value_255(), "bits per value"),
+        (
+            "random.grib2",
+            fixtures::random_bytes(0x5eed, 4096),
+            "not a GRIB file",
+        ),
+        (
+            "bpv.grib2",
+            fixtures::bits_per_value_255(),
+            "bits per value",
+        ),
         ("count.grib2", fixtures::huge_packed_count(), "packs"),
         ("huge.grib2", fixtures::huge_grid_claim(), "60000x60000"),
         ("polar.grib2", fixtures::unsupported_grid(), "grid template"),
@@ -138,7 +195,12 @@ fn bad_files_are_refused_cleanly() {
 #[test]
 fn absent_level_lists_the_levels_present() {
     let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
-    expect_refused(&gfs, &["--level", "420"], "levels present: 1000, 975, 950", true);
+    expect_refused(
+        &gfs,
+        &["--level", "420"],
+        "levels present: 1000, 975, 950",
+        true,
+    );
 }
 
 #[test]
@@ -153,7 +215,16 @@ fn bad_options_are_refused() {
     ] {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("m.png");
-        let o = stratus(&["ingest", gfs.to_str().unwrap(), "--region", region, "--size", size, "--out", out.to_str().unwrap()]);
+        let o = stratus(&[
+            "ingest",
+            gfs.to_str().unwrap(),
+            "--region",
+            region,
+            "--size",
+            size,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{region} {size}: {err}");
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
@@ -172,7 +243,10 @@ fn bit_flips_in_a_real_message_never_panic_or_leave_output() {
     let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let bytes = std::fs::read(&gfs).unwrap();
     let msgs = stratus_ingest::grib::scan(&bytes).unwrap();
-    let m = msgs.iter().find(|m| m.is_relative_humidity() && m.pressure_hpa() == Some(400.0)).unwrap();
+    let m = msgs
+        .iter()
+        .find(|m| m.is_relative_humidity() && m.pressure_hpa() == Some(400.0))
+        .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let (mut refused, mut accepted) = (0, 0);
     for k in 0..24usize {
@@ -182,7 +256,18 @@ fn bit_flips_in_a_real_message_never_panic_or_leave_output() {
         b[pos] ^= 1 << (k % 8);
         let p = write_tmp(dir.path(), &format!("flip{k}.grib2"), &b);
         let out = dir.path().join(format!("flip{k}.png"));
-        let o = stratus(&["ingest", p.to_str().unwrap(), "--level", "400", "--region", "0,55,39,105", "--size", "65x55", "--out", out.to_str().unwrap()]);
+        let o = stratus(&[
+            "ingest",
+            p.to_str().unwrap(),
+            "--level",
+            "400",
+            "--region",
+            "0,55,39,105",
+            "--size",
+            "65x55",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!err.contains("panicked"), "flip {k}: {err}");
         match o.status.code() {
