@@ -3,3 +3,4 @@
 pub mod cmd;
 pub mod render;
 pub mod score;
+pub mod sun;

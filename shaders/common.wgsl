@@ -1,0 +1,150 @@
+// Shared by every Stratus GPU stage (prepended to each stage's source by the Rust side):
+// the frame uniforms, the paper's remap/SAT, Henyey–Greenstein phase, numerically stable
+// ray–shell geometry relative to the ray's own origin, the weather-map lookup and the sky.
+
+const PI: f32 = 3.14159265;
+const EARTH_R: f32 = 6371000.0;
+
+// Mirrors `render::frame::FrameUniforms` (all vec4 so the layout needs no padding rules).
+struct Frame {
+    cam_up: vec4<f32>,      // xyz local up at the camera (ECEF), w camera altitude (m)
+    cam_fwd: vec4<f32>,     // xyz forward, w tan(fov_y / 2)
+    cam_right: vec4<f32>,   // xyz right, w aspect (width / height)
+    cam_upv: vec4<f32>,     // xyz view up, w mode (0 perspective, 1 top-down)
+    noise_origin: vec4<f32>,// xyz camera ECEF modulo the shape-noise period (m), w that period
+    sun_dir: vec4<f32>,     // xyz toward the Sun (ECEF), w 1 if the Sun is the key light
+    sun_col: vec4<f32>,     // rgb Sun irradiance (linear), w moon phase
+    moon_dir: vec4<f32>,
+    moon_col: vec4<f32>,
+    region: vec4<f32>,      // south, north, west, eastward span (degrees)
+    region2: vec4<f32>,     // top-down altitude (m), map width, map height, empty-skip length (m)
+    layer_base: vec4<f32>,  // base of low, middle, high (m); w lowest base
+    layer_top: vec4<f32>,   // top of low, middle, high (m); w highest top
+    layer_on: vec4<f32>,    // 1/0 per layer; w coverage multiplier
+    light: vec4<f32>,       // density multiplier, extinction per unit density (1/m), HG g, Beer clamp ac
+    march: vec4<f32>,       // min step (m), step growth per metre of distance, max step (m), max steps
+    march2: vec4<f32>,      // light steps, first light step (m), early-exit transmittance, flags
+    misc: vec4<f32>,        // detail-noise period (m), exposure, haze extinction (1/m), coarse cell (px)
+    size: vec4<f32>,        // output width, height, frame index, 0
+};
+
+// march2.w flag bits.
+const FLAG_SKIP: u32 = 1u;     // empty-space skipping over the coarse map
+const FLAG_CULL: u32 = 2u;     // no sampling outside the region / cloudless map
+const FLAG_DETAIL: u32 = 4u;   // detail noise
+const FLAG_JITTER: u32 = 8u;   // per-pixel jittered ray start
+const FLAG_NO_SKY: u32 = 16u;  // scoring: black background, sun overhead
+const FLAG_LIGHT_LOD: u32 = 32u;// fewer light steps once the view ray is mostly opaque
+
+fn has_flag(f: Frame, bit: u32) -> bool {
+    return (u32(f.march2.w) & bit) != 0u;
+}
+
+// The paper's R(v, lo, ho, ln, hn) and SAT.
+fn remap(v: f32, lo: f32, ho: f32, ln: f32, hn: f32) -> f32 {
+    return ln + (v - lo) * (hn - ln) / max(ho - lo, 1e-6);
+}
+fn sat(v: f32) -> f32 {
+    return clamp(v, 0.0, 1.0);
+}
+
+fn hg(cos_t: f32, g: f32) -> f32 {
+    let g2 = g * g;
+    return (1.0 - g2) / (4.0 * PI * pow(max(1.0 + g2 - 2.0 * g * cos_t, 1e-4), 1.5));
+}
+
+// Dual-lobe phase (DESIGN §3): mix(HG(-g), HG(g), 0.7).
+fn phase(cos_t: f32, g: f32) -> f32 {
+    return mix(hg(cos_t, -g), hg(cos_t, g), 0.7);
+}
+
+// Ray from a point at altitude h (m) with local up `up` in direction d (unit). Distances t
+// where it crosses the sphere of altitude a: t² + 2 t (R+h) μ + (h − a)(2R + h + a) = 0.
+// Everything is relative to the ray's origin, and the smaller root is taken as c/q, so there is
+// no cancellation of two 6.4e6 m numbers. Returns (t_near, t_far); t_far < t_near when missed.
+fn shell_hits(h: f32, mu: f32, a: f32) -> vec2<f32> {
+    let b = (EARTH_R + h) * mu;
+    let c = (h - a) * (2.0 * EARTH_R + h + a);
+    let disc = b * b - c;
+    if (disc < 0.0) {
+        return vec2<f32>(1.0, -1.0);
+    }
+    let s = sqrt(disc);
+    let q = -b - select(s, -s, b < 0.0);
+    // q has the sign of -b and magnitude |b| + s; c/q is the other root.
+    var t0 = q;
+    var t1 = q;
+    if (abs(q) > 1e-12) {
+        t1 = c / q;
+    }
+    return vec2<f32>(min(t0, t1), max(t0, t1));
+}
+
+// Altitude of origin + t·d, stable for small t (no |x| − R of two huge numbers).
+fn altitude_at(h: f32, mu: f32, t: f32) -> f32 {
+    let rh = EARTH_R + h;
+    let num = t * (2.0 * rh * mu + t);
+    let r2 = rh * rh + num;
+    return h + num / (sqrt(max(r2, 0.0)) + rh);
+}
+
+// Latitude/longitude (degrees) of the ECEF direction n.
+fn lat_lon(n: vec3<f32>) -> vec2<f32> {
+    let ln = normalize(n);
+    return vec2<f32>(degrees(asin(clamp(ln.z, -1.0, 1.0))), degrees(atan2(ln.y, ln.x)));
+}
+
+// Weather-map uv of a lat/lon, or a negative u when outside the region.
+fn region_uv(f: Frame, ll: vec2<f32>) -> vec2<f32> {
+    let dx = ll.y - f.region.z;
+    let wrapped = dx - 360.0 * floor(dx / 360.0);
+    let u = wrapped / f.region.w;
+    let v = (f.region.y - ll.x) / (f.region.y - f.region.x);
+    if (u < 0.0 || u > 1.0 || v < 0.0 || v > 1.0) {
+        return vec2<f32>(-1.0, -1.0);
+    }
+    return vec2<f32>(u, v);
+}
+
+fn luminance(c: vec3<f32>) -> f32 {
+    return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
+}
+
+// Clear-sky radiance seen along direction v from a point with local up `up`: a Rayleigh-blue
+// dome brighter toward the horizon, Mie glow around the Sun, twilight that outlasts sunset, a
+// faint airglow at night and the Moon's glow. Not a full scattering model; see docs/renderer.md.
+fn sky_radiance(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
+    let s = f.sun_dir.xyz;
+    let sun_el = dot(s, up);
+    let view_el = max(dot(v, up), 0.0);
+    let day = smoothstep(-0.15, 0.05, sun_el);
+    let zenith = vec3<f32>(0.20, 0.38, 0.80) * (0.25 + 0.75 * sat(sun_el * 3.0));
+    let horizon_col = mix(vec3<f32>(0.95, 0.55, 0.30), vec3<f32>(0.60, 0.72, 0.90), sat(sun_el * 4.0 + 0.2));
+    let horizon_w = pow(1.0 - view_el, 4.0);
+    var c = mix(zenith, horizon_col, horizon_w) * day * 0.5;
+    let cos_s = dot(v, s);
+    c += f.sun_col.rgb * (hg(cos_s, 0.76) * 0.08 + hg(cos_s, 0.3) * 0.05);
+    // Night: faint airglow (about 1/250 of full-moon light) and the moonlit sky.
+    let m = f.moon_dir.xyz;
+    let moon_up = smoothstep(-0.05, 0.05, dot(m, up));
+    c += vec3<f32>(0.3, 0.4, 0.6) * 1e-8 * (1.0 + horizon_w);
+    c += f.moon_col.rgb * moon_up * (mix(vec3<f32>(0.10, 0.19, 0.40), vec3<f32>(0.3, 0.36, 0.45), horizon_w)
+        + vec3<f32>(hg(dot(v, m), 0.76) * 0.08));
+    return c;
+}
+
+// Perspective view direction through pixel position px (pixel units, centre = +0.5).
+fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
+    let ndc = vec2<f32>(px.x / f.size.x * 2.0 - 1.0, 1.0 - px.y / f.size.y * 2.0);
+    let tn = f.cam_fwd.w;
+    return normalize(f.cam_fwd.xyz + f.cam_right.xyz * (ndc.x * tn * f.cam_right.w) + f.cam_upv.xyz * (ndc.y * tn));
+}
+
+// Aerial haze transmittance over `dist` metres between altitudes h0 and h1: the visibility's
+// extinction (3.912 / V, Koschmieder) at sea level, thinning with a 1.5 km aerosol scale
+// height (taken at the mean altitude), plus clear-air Rayleigh extinction (~1/300 km at sea level).
+fn haze_transmittance(f: Frame, h0: f32, h1: f32, dist: f32) -> f32 {
+    let hm = max(0.5 * (h0 + h1), 0.0);
+    let beta = f.misc.z * exp(-hm / 1500.0) + 3.3e-6 * exp(-hm / 8000.0);
+    return exp(-beta * dist);
+}

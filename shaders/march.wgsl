@@ -1,0 +1,304 @@
+// March stage: one compute invocation per pixel marches the view ray through the cloud shells
+// (DESIGN §2–4) and writes premultiplied linear cloud radiance + opacity to a storage texture.
+
+@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(1) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
+@group(0) @binding(2) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
+@group(0) @binding(3) var shape_tex: texture_3d<f32>;
+@group(0) @binding(4) var detail_tex: texture_3d<f32>;
+@group(0) @binding(5) var clamp_lin: sampler;
+@group(0) @binding(6) var repeat_lin: sampler;
+@group(0) @binding(7) var out_cloud: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 8>;
+
+// Work counters (see render::Stats).
+const C_RAYS: u32 = 0u;
+const C_STEPS: u32 = 1u;
+const C_DENSITY: u32 = 2u;
+const C_DETAIL: u32 = 3u;
+const C_LIGHT: u32 = 4u;
+const C_OUTSIDE: u32 = 5u;
+const C_SKIPPED: u32 = 6u;
+const C_EARLY: u32 = 7u;
+
+var<workgroup> wg_count: array<atomic<u32>, 8>;
+var<private> local_count: array<u32, 8>;
+
+// Sun intensity relative to the sky model's units.
+const SUN_I: f32 = 20.0;
+
+struct Sample {
+    cm: vec3<f32>,   // coverage per layer
+    inside: bool,    // inside the region
+};
+
+fn weather_at(pos: vec3<f32>) -> Sample {
+    var s: Sample;
+    let uv = region_uv(f, lat_lon(pos));
+    s.inside = uv.x >= 0.0;
+    s.cm = vec3<f32>(0.0);
+    if (s.inside) {
+        let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
+        s.cm = clamp(w.rgb * f.layer_on.w, vec3<f32>(0.0), vec3<f32>(1.0)) * f.layer_on.xyz;
+    }
+    return s;
+}
+
+// True when the coarse map says nothing is within a cell of this point.
+fn coarse_empty(pos: vec3<f32>) -> bool {
+    let uv = region_uv(f, lat_lon(pos));
+    if (uv.x < 0.0) {
+        return true;
+    }
+    let dims = vec2<f32>(textureDimensions(coarse));
+    let c = min(vec2<i32>(uv * dims), vec2<i32>(dims) - 1);
+    return textureLoad(coarse, c, 0).r <= 0.0;
+}
+
+// DESIGN §2, eqs 5–18, for one layer: coverage cm, height fraction ph, noise position np.
+fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
+    let gs = sat(remap(ph, 0.0, 0.07, 0.0, 1.0)) * sat(remap(ph, 0.2 * cm, cm, 1.0, 0.0));
+    let gd = ph * sat(remap(ph, 0.0, 0.15, 0.0, 1.0)) * sat(remap(ph, 0.9, 1.0, 1.0, 0.0)) * cm * 2.0;
+    if (gs <= 0.0 || gd <= 0.0) {
+        return 0.0;
+    }
+    let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.noise_origin.w, 0.0);
+    let fbm = sn.g * 0.625 + sn.b * 0.25 + sn.a * 0.125;
+    let ns_tex = remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
+    let ns = sat(remap(ns_tex * gs, 1.0 - cm, 1.0, 0.0, 1.0));
+    if (ns <= 0.0) {
+        return 0.0;
+    }
+    var nd_mod = 0.0;
+    if (detail) {
+        local_count[C_DETAIL] += 1u;
+        let dn = textureSampleLevel(detail_tex, repeat_lin, np / f.misc.x, 0.0);
+        let nd_fbm = dn.r * 0.625 + dn.g * 0.25 + dn.b * 0.125;
+        nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
+    }
+    return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;
+}
+
+// Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.
+fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
+    if (h < f.layer_base.w || h > f.layer_top.w) {
+        return 0.0;
+    }
+    let s = weather_at(pos);
+    let cull = has_flag(f, FLAG_CULL);
+    if (!s.inside) {
+        if (cull) {
+            return 0.0;
+        }
+        local_count[C_OUTSIDE] += 1u;
+    }
+    if (cull && max(s.cm.x, max(s.cm.y, s.cm.z)) <= 0.0) {
+        return 0.0;
+    }
+    local_count[C_DENSITY] += 1u;
+    var d = 0.0;
+    for (var k = 0; k < 3; k++) {
+        let base = f.layer_base[k];
+        let top = f.layer_top[k];
+        if (h >= base && h <= top && (s.cm[k] > 0.0 || !cull)) {
+            d += layer_density(np, s.cm[k], (h - base) / max(top - base, 1.0), detail);
+        }
+    }
+    return d * f.light.x;
+}
+
+struct Ray {
+    h: f32,          // origin altitude (m)
+    up: vec3<f32>,   // local up at the origin
+    d: vec3<f32>,    // direction
+    np: vec3<f32>,   // noise-space origin (m)
+};
+
+fn make_ray(px: vec2<f32>) -> Ray {
+    var r: Ray;
+    let size = f.size.xy;
+    if (f.cam_upv.w > 0.5) {
+        // Top-down: one nadir ray per map pixel centre (DESIGN §1.2 pixel convention).
+        let lat = radians(f.region.y - px.y / size.y * (f.region.y - f.region.x));
+        let lon = radians(f.region.z + px.x / size.x * f.region.w);
+        r.up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
+        r.h = f.region2.x;
+        r.d = -r.up;
+        let o = r.up * (EARTH_R + r.h);
+        r.np = o - f.noise_origin.w * floor(o / f.noise_origin.w);
+    } else {
+        r.d = persp_dir(f, px);
+        r.up = f.cam_up.xyz;
+        r.h = f.cam_up.w;
+        r.np = f.noise_origin.xyz;
+    }
+    return r;
+}
+
+// Optical depth toward the key light from a sample: short march, the last step 6× longer.
+fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) -> f32 {
+    let up = normalize(pos);
+    let mu = dot(key, up);
+    let step0 = f.march2.y;
+    var s = 0.0;
+    var tau = 0.0;
+    for (var i = 0u; i < n; i++) {
+        var ds = step0;
+        if (i + 1u == n) {
+            ds = step0 * 6.0;
+        }
+        let sm = s + 0.5 * ds;
+        s += ds;
+        let hl = altitude_at(h, mu, sm);
+        let pl = pos + key * sm;
+        local_count[C_LIGHT] += 1u;
+        tau += density(pl, hl, np + key * sm, false) * f.light.y * ds;
+    }
+    return tau;
+}
+
+fn march(r: Ray, jitter: f32) -> vec4<f32> {
+    let mu = dot(r.d, r.up);
+    let outer = shell_hits(r.h, mu, f.layer_top.w);
+    if (outer.y < 0.0 || outer.x > outer.y) {
+        return vec4<f32>(0.0);
+    }
+    // Beyond five visibility lengths the haze hides everything (size.w).
+    var end_all = min(outer.y, f.size.w);
+    let ground = shell_hits(r.h, mu, 0.0);
+    if (ground.x <= ground.y && ground.y > 0.0) {
+        end_all = min(end_all, max(ground.x, 0.0));
+    }
+    let inner = shell_hits(r.h, mu, f.layer_base.w);
+    var segs = array<vec2<f32>, 2>(vec2<f32>(max(outer.x, 0.0), end_all), vec2<f32>(1.0, 0.0));
+    if (inner.x <= inner.y && inner.y > 0.0) {
+        segs[0] = vec2<f32>(max(outer.x, 0.0), min(end_all, inner.x));
+        segs[1] = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
+    }
+
+    let no_sky = has_flag(f, FLAG_NO_SKY);
+    let skip = has_flag(f, FLAG_SKIP);
+    let lod = has_flag(f, FLAG_LIGHT_LOD);
+    let detail = has_flag(f, FLAG_DETAIL);
+    let sun_key = f.sun_dir.w > 0.5;
+    let cos_t = dot(r.d, select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key));
+    let g = f.light.z;
+    let ph_fn = phase(cos_t, g);
+    let powder_w = remap(cos_t, -1.0, 1.0, 0.0, 1.0);
+    let max_steps = u32(f.march.w);
+    let early = f.march2.z;
+    let n_light = u32(f.march2.x);
+    let origin = r.up * (EARTH_R + r.h);
+
+    var tr = 1.0;
+    var col = vec3<f32>(0.0);
+    var depth_w = 0.0;
+    var steps = 0u;
+    var done = false;
+    for (var si = 0; si < 2 && !done; si++) {
+        let seg = segs[si];
+        if (seg.y <= seg.x) {
+            continue;
+        }
+        var t = seg.x + jitter * clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z);
+        loop {
+            if (t >= seg.y || steps >= max_steps) {
+                break;
+            }
+            steps += 1u;
+            let dt = clamp(f.march.x + f.march.y * t, f.march.x, f.march.z);
+            let pos = origin + r.d * t;
+            if (skip && coarse_empty(pos)) {
+                local_count[C_SKIPPED] += 1u;
+                t += max(dt, f.region2.w);
+                continue;
+            }
+            let h = altitude_at(r.h, mu, t);
+            let np = r.np + r.d * t;
+            let sigma = density(pos, h, np, detail) * f.light.y;
+            if (sigma > 0.0) {
+                let up = normalize(pos);
+                var key = select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key);
+                var key_col = select(f.moon_col.rgb, f.sun_col.rgb, sun_key);
+                var ambient = sky_radiance(f, up, up);
+                if (no_sky) {
+                    key = up;
+                    key_col = vec3<f32>(1.0);
+                    ambient = vec3<f32>(0.3);
+                }
+                var nl = n_light;
+                if (lod && tr < 0.3) {
+                    nl = max(1u, n_light / 2u);
+                }
+                let tau = light_depth(pos, h, np, key, nl);
+                // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
+                // black, plus two octaves of Hillaire's multiple-scattering approximation
+                // (extinction, phase g and energy each halved per octave).
+                let powder = 1.0 - exp(-2.0 * tau);
+                var ms = max(exp(-tau), f.light.w * exp(-0.25 * tau)) * ph_fn;
+                ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
+                ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
+                let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
+                let ph_amb = sat((h - f.layer_base.w) / max(f.layer_top.w - f.layer_base.w, 1.0));
+                let l_in = lit + ambient * (0.5 + 0.5 * ph_amb);
+                // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
+                let a = exp(-sigma * dt);
+                col += tr * (1.0 - a) * l_in;
+                depth_w += tr * (1.0 - a) * t;
+                tr *= a;
+                if (tr < early) {
+                    local_count[C_EARLY] += 1u;
+                    done = true;
+                    break;
+                }
+            }
+            t += dt;
+        }
+    }
+    local_count[C_STEPS] += steps;
+    let alpha = 1.0 - tr;
+    if (alpha <= 0.0) {
+        return vec4<f32>(0.0);
+    }
+    if (!no_sky) {
+        // Aerial haze (Koschmieder) toward the opacity-weighted cloud distance.
+        let dist = depth_w / alpha;
+        let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
+        let haze = sky_radiance(f, r.d, r.up);
+        col = col * fog + haze * alpha * (1.0 - fog);
+    }
+    return vec4<f32>(col, alpha);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    if (li < 8u) {
+        atomicStore(&wg_count[li], 0u);
+    }
+    workgroupBarrier();
+    let size = vec2<u32>(f.size.xy);
+    if (all(id.xy < size)) {
+        let px = vec2<f32>(id.xy) + 0.5;
+        var jitter = 0.5;
+        if (has_flag(f, FLAG_JITTER)) {
+            // Interleaved gradient noise (Jimenez 2014), shifted per frame.
+            let q = px + vec2<f32>(5.588238 * f.size.z);
+            jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
+        }
+        local_count[C_RAYS] = 1u;
+        let c = march(make_ray(px), jitter);
+        textureStore(out_cloud, vec2<i32>(id.xy), c);
+        for (var k = 0u; k < 8u; k++) {
+            if (local_count[k] != 0u) {
+                atomicAdd(&wg_count[k], local_count[k]);
+            }
+        }
+    }
+    workgroupBarrier();
+    if (li < 8u) {
+        let v = atomicLoad(&wg_count[li]);
+        if (v != 0u) {
+            atomicAdd(&counters[li], v);
+        }
+    }
+}

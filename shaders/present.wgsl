@@ -1,0 +1,80 @@
+// Present stage: a full-screen triangle that lays the cloud image over the sky, the Sun, Moon,
+// stars and the hazy ground, applies exposure and a filmic tone curve; the sRGB target encodes.
+
+@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(1) var cloud: texture_2d<f32>;
+
+struct VsOut {
+    @builtin(position) pos: vec4<f32>,
+};
+
+@vertex
+fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
+    var o: VsOut;
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    o.pos = vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+    return o;
+}
+
+fn hash2(p: vec2<f32>) -> f32 {
+    return fract(sin(dot(p, vec2<f32>(127.1, 311.7))) * 43758.5453);
+}
+
+// Stars: a sparse fixed field in ECEF direction space, visible once the sky is dark enough.
+fn stars(v: vec3<f32>) -> vec3<f32> {
+    let ll = lat_lon(v);
+    let cell = floor(vec2<f32>(ll.x * 2.0, ll.y * 2.0 * cos(radians(ll.x))));
+    let h = hash2(cell);
+    if (h > 0.985) {
+        return vec3<f32>(1.0, 0.95, 0.9) * (h - 0.985) * 2e-7;
+    }
+    return vec3<f32>(0.0);
+}
+
+// Ordered so a narrow sliver of each disc does not alias: a soft edge over 10 % of the radius.
+fn disc(v: vec3<f32>, dir: vec3<f32>, radius_rad: f32) -> f32 {
+    let ang = acos(clamp(dot(v, dir), -1.0, 1.0));
+    return 1.0 - smoothstep(radius_rad * 0.9, radius_rad * 1.1, ang);
+}
+
+fn background(v: vec3<f32>) -> vec3<f32> {
+    let up = f.cam_up.xyz;
+    let h = f.cam_up.w;
+    let mu = dot(v, up);
+    let ground = shell_hits(h, mu, 0.0);
+    if (ground.x <= ground.y && ground.y > 0.0) {
+        // Ground: a dull land albedo under Sun and sky, fading into the haze with distance.
+        let t = max(ground.x, 0.0);
+        let n = normalize(up * (EARTH_R + h) + v * t);
+        let sun = f.sun_col.rgb * max(dot(n, f.sun_dir.xyz), 0.0) * 20.0 * 0.25
+            + f.moon_col.rgb * max(dot(n, f.moon_dir.xyz), 0.0) * 20.0 * 0.25;
+        let albedo = vec3<f32>(0.08, 0.10, 0.07);
+        let lit = albedo * (sun + sky_radiance(f, n, n));
+        let fog = haze_transmittance(f, h, 0.0, t);
+        return lit * fog + sky_radiance(f, v, up) * (1.0 - fog);
+    }
+    var c = sky_radiance(f, v, up);
+    let above = smoothstep(-0.01, 0.01, mu);
+    c += f.sun_col.rgb * disc(v, f.sun_dir.xyz, 0.0047) * 2e4 * above;
+    c += f.moon_col.rgb * disc(v, f.moon_dir.xyz, 0.0045) * 2e4 * above;
+    let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir.xyz, up));
+    c += stars(v) * dark * above;
+    return c;
+}
+
+// Narkowicz's fitted ACES curve.
+fn aces(x: vec3<f32>) -> vec3<f32> {
+    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    let ip = vec2<i32>(in.pos.xy);
+    let c = textureLoad(cloud, ip, 0);
+    var bg = vec3<f32>(0.0);
+    if ((u32(f.march2.w) & FLAG_NO_SKY) == 0u) {
+        bg = background(persp_dir(f, in.pos.xy));
+    }
+    let lin = bg * (1.0 - c.a) + c.rgb;
+    return vec4<f32>(aces(lin * f.misc.y), 1.0);
+}

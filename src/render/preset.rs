@@ -1,0 +1,148 @@
+//! Quality presets: how finely rays are marched and which shortcuts are on (DESIGN §4, §4b).
+//!
+//! `reference` defines "accurate": fixed small steps, no early exit, no skipping or culling,
+//! a long light march. The other presets trade accuracy for speed; `stratus bench` measures
+//! by how much.
+
+use serde::{Deserialize, Serialize};
+
+/// A named quality level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    Fast,
+    Balanced,
+    High,
+    Reference,
+}
+
+impl Preset {
+    pub const ALL: [Preset; 4] = [Preset::Fast, Preset::Balanced, Preset::High, Preset::Reference];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Fast => "fast",
+            Preset::Balanced => "balanced",
+            Preset::High => "high",
+            Preset::Reference => "reference",
+        }
+    }
+
+    /// The march parameters this preset stands for.
+    pub fn params(self) -> MarchParams {
+        let on = Shortcuts::all();
+        match self {
+            Preset::Fast => MarchParams {
+                step_min_m: 80.0,
+                step_growth: 0.012,
+                step_max_m: 2000.0,
+                max_steps: 160,
+                light_steps: 2,
+                light_step_m: 150.0,
+                early_exit: 0.05,
+                detail: false,
+                shortcuts: on,
+            },
+            Preset::Balanced => MarchParams {
+                step_min_m: 40.0,
+                step_growth: 0.006,
+                step_max_m: 1000.0,
+                max_steps: 320,
+                light_steps: 3,
+                light_step_m: 100.0,
+                early_exit: 0.02,
+                detail: true,
+                shortcuts: on,
+            },
+            Preset::High => MarchParams {
+                step_min_m: 20.0,
+                step_growth: 0.003,
+                step_max_m: 500.0,
+                max_steps: 800,
+                light_steps: 4,
+                light_step_m: 70.0,
+                early_exit: 0.01,
+                detail: true,
+                shortcuts: on,
+            },
+            Preset::Reference => MarchParams {
+                step_min_m: 10.0,
+                step_growth: 0.0,
+                step_max_m: 10.0,
+                max_steps: 40_000,
+                light_steps: 6,
+                light_step_m: 50.0,
+                early_exit: 0.0,
+                detail: true,
+                shortcuts: Shortcuts {
+                    early_exit: false,
+                    variable_step: false,
+                    region_cull: false,
+                    empty_skip: false,
+                    light_lod: false,
+                    jitter: false,
+                },
+            },
+        }
+    }
+}
+
+/// The optimisations, each switchable alone to measure what it buys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shortcuts {
+    pub early_exit: bool,
+    pub variable_step: bool,
+    pub region_cull: bool,
+    pub empty_skip: bool,
+    pub light_lod: bool,
+    pub jitter: bool,
+}
+
+impl Shortcuts {
+    pub fn all() -> Shortcuts {
+        Shortcuts {
+            early_exit: true,
+            variable_step: true,
+            region_cull: true,
+            empty_skip: true,
+            light_lod: true,
+            jitter: true,
+        }
+    }
+}
+
+/// What the march shader is told.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MarchParams {
+    /// Step length at the camera (m).
+    pub step_min_m: f32,
+    /// Step growth per metre of distance (variable step: dt = min + growth·t).
+    pub step_growth: f32,
+    pub step_max_m: f32,
+    pub max_steps: u32,
+    pub light_steps: u32,
+    /// First light-march step (m); the last is 6× longer.
+    pub light_step_m: f32,
+    /// Stop once transmittance falls below this.
+    pub early_exit: f32,
+    /// Detail (erosion) noise on.
+    pub detail: bool,
+    pub shortcuts: Shortcuts,
+}
+
+impl MarchParams {
+    /// Parameters with the switched-off shortcuts made inert.
+    pub fn effective(&self) -> MarchParams {
+        let mut p = *self;
+        if !p.shortcuts.early_exit {
+            p.early_exit = 0.0;
+        }
+        if !p.shortcuts.variable_step {
+            p.step_growth = 0.0;
+            p.step_max_m = p.step_min_m;
+            // The same distance needs more steps at the near step length.
+            p.max_steps = p.max_steps.saturating_mul(8).min(40_000);
+        }
+        p
+    }
+}

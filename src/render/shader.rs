@@ -1,0 +1,41 @@
+//! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front.
+
+pub const NOISE: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/noise.wgsl")
+);
+pub const MARCH: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/march.wgsl")
+);
+pub const PRESENT: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/present.wgsl")
+);
+
+pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every stage parses and validates with naga, without a GPU.
+    #[test]
+    fn shaders_validate() {
+        for (name, src) in [("noise", NOISE), ("march", MARCH), ("present", PRESENT)] {
+            let module = naga::front::wgsl::parse_str(src)
+                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::default(),
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        }
+    }
+}

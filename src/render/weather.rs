@@ -1,0 +1,216 @@
+//! The CloudMap on the GPU: the weather texture the march samples by latitude/longitude, and the
+//! coarse max-map it skips empty space with (DESIGN §4). Maps larger than the adapter allows are
+//! box-downscaled with a warning.
+
+use rayon::prelude::*;
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::meta::LayerKind;
+use wgpu::util::DeviceExt;
+
+use super::camera::EARTH_R;
+use super::gpu::Gpu;
+
+/// Map pixels per coarse cell side.
+pub const COARSE_CELL: usize = 8;
+
+/// Altitude band of a layer slot (low, middle, high); `None` when the map has no such layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Band {
+    pub base_m: f32,
+    pub top_m: f32,
+}
+
+pub struct WeatherMap {
+    pub texture: wgpu::Texture,
+    pub coarse: wgpu::Texture,
+    /// Size on the GPU (after any downscale).
+    pub width: u32,
+    pub height: u32,
+    /// Longest step that cannot jump over a covered coarse cell (m).
+    pub skip_m: f32,
+    pub bands: [Option<Band>; 3],
+    /// The coarse map on the CPU (row-major, dilated), for tests and counters.
+    pub coarse_cells: Vec<f32>,
+    pub coarse_w: usize,
+    pub coarse_h: usize,
+}
+
+/// Box-average `texels` (w×h, RGBA in 0..1) by an integer factor.
+fn downscale(texels: &[[f32; 4]], w: usize, h: usize, k: usize) -> (Vec<[f32; 4]>, usize, usize) {
+    let (nw, nh) = (w.div_ceil(k), h.div_ceil(k));
+    let out = (0..nw * nh)
+        .into_par_iter()
+        .map(|idx| {
+            let (i, j) = (idx % nw, idx / nw);
+            let mut acc = [0.0f32; 4];
+            let mut n = 0.0f32;
+            for y in j * k..((j + 1) * k).min(h) {
+                for x in i * k..((i + 1) * k).min(w) {
+                    let t = texels[y * w + x];
+                    for c in 0..4 {
+                        acc[c] += t[c];
+                    }
+                    n += 1.0;
+                }
+            }
+            acc.map(|a| a / n)
+        })
+        .collect();
+    (out, nw, nh)
+}
+
+/// Max of A over each cell, then dilated by one cell so a half-texel of bilinear bleed and
+/// a step of up to one cell can never pass over cover unseen.
+pub fn coarse_map(texels: &[[f32; 4]], w: usize, h: usize) -> (Vec<f32>, usize, usize) {
+    let (cw, ch) = (w.div_ceil(COARSE_CELL), h.div_ceil(COARSE_CELL));
+    let raw: Vec<f32> = (0..cw * ch)
+        .into_par_iter()
+        .map(|idx| {
+            let (i, j) = (idx % cw, idx / cw);
+            let mut m = 0.0f32;
+            for y in j * COARSE_CELL..((j + 1) * COARSE_CELL).min(h) {
+                for x in i * COARSE_CELL..((i + 1) * COARSE_CELL).min(w) {
+                    m = m.max(texels[y * w + x][3]);
+                }
+            }
+            m
+        })
+        .collect();
+    let dilated = (0..cw * ch)
+        .map(|idx| {
+            let (i, j) = ((idx % cw) as isize, (idx / cw) as isize);
+            let mut m = 0.0f32;
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (x, y) = (i + dx, j + dy);
+                    if x >= 0 && y >= 0 && (x as usize) < cw && (y as usize) < ch {
+                        m = m.max(raw[y as usize * cw + x as usize]);
+                    }
+                }
+            }
+            m
+        })
+        .collect();
+    (dilated, cw, ch)
+}
+
+impl WeatherMap {
+    pub fn upload(gpu: &Gpu, map: &CloudMap) -> WeatherMap {
+        let (mut w, mut h) = (map.width(), map.height());
+        let mut texels: Vec<[f32; 4]> = map
+            .texels
+            .par_iter()
+            .map(|t| t.map(|v| v as f32 / 65535.0))
+            .collect();
+        let max = gpu.device.limits().max_texture_dimension_2d as usize;
+        if w > max || h > max {
+            let k = w.max(h).div_ceil(max);
+            tracing::warn!(
+                "CloudMap {w}×{h} exceeds this adapter's {max}-texel limit: rendering it downscaled {k}×"
+            );
+            (texels, w, h) = downscale(&texels, w, h, k);
+        }
+        let halfs: Vec<half::f16> = texels
+            .iter()
+            .flat_map(|t| t.map(half::f16::from_f32))
+            .collect();
+        let texture = gpu.device.create_texture_with_data(
+            &gpu.queue,
+            &wgpu::TextureDescriptor {
+                label: Some("weather map"),
+                size: wgpu::Extent3d {
+                    width: w as u32,
+                    height: h as u32,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba16Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            bytemuck::cast_slice(&halfs),
+        );
+        let (cells, cw, ch) = coarse_map(&texels, w, h);
+        let coarse = gpu.device.create_texture_with_data(
+            &gpu.queue,
+            &wgpu::TextureDescriptor {
+                label: Some("coarse map"),
+                size: wgpu::Extent3d {
+                    width: cw as u32,
+                    height: ch as u32,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::R32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            bytemuck::cast_slice(&cells),
+        );
+        let r = &map.meta.region;
+        let deg_m = EARTH_R.to_radians();
+        let max_abs_lat = r.south.abs().max(r.north.abs()).min(89.9);
+        let cell_lat_m = (r.north - r.south) / h as f64 * COARSE_CELL as f64 * deg_m;
+        let cell_lon_m = r.lon_span() / w as f64 * COARSE_CELL as f64 * deg_m * max_abs_lat.to_radians().cos();
+        let skip_m = (0.95 * cell_lat_m.min(cell_lon_m)) as f32;
+        let mut bands = [None; 3];
+        for l in &map.meta.layers {
+            let slot = match l.kind {
+                LayerKind::Low => 0,
+                LayerKind::Middle => 1,
+                LayerKind::High => 2,
+            };
+            bands[slot] = Some(Band {
+                base_m: l.base_m as f32,
+                top_m: l.top_m as f32,
+            });
+        }
+        WeatherMap {
+            texture,
+            coarse,
+            width: w as u32,
+            height: h as u32,
+            skip_m,
+            bands,
+            coarse_cells: cells,
+            coarse_w: cw,
+            coarse_h: ch,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coarse_map_is_dilated_max() {
+        let (w, h) = (32, 24);
+        let mut t = vec![[0.0f32; 4]; w * h];
+        t[10 * w + 20][3] = 0.4;
+        let (c, cw, ch) = coarse_map(&t, w, h);
+        assert_eq!((cw, ch), (4, 3));
+        // Pixel (20, 10) is in cell (2, 1); dilation covers cells x 1..=3, y 0..=2.
+        for j in 0..ch {
+            for i in 0..cw {
+                let want = if (1..=3).contains(&i) { 0.4 } else { 0.0 };
+                assert_eq!(c[j * cw + i], want, "cell {i},{j}");
+            }
+        }
+    }
+
+    #[test]
+    fn downscale_averages() {
+        let t = vec![[1.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 1.0]];
+        let (d, w, h) = downscale(&t, 3, 1, 2);
+        assert_eq!((w, h), (2, 1));
+        assert_eq!(d[0][0], 0.5);
+        assert_eq!(d[1][3], 1.0);
+    }
+}
