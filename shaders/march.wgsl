@@ -247,7 +247,12 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
                 depth_w += tr * (1.0 - a) * t;
                 tr *= a;
                 if (tr < early) {
+                    // Opaque enough: call it opaque, and give the cut-off remainder to what
+                    // was seen (renormalise) rather than to the background.
                     local_count[C_EARLY] += 1u;
+                    col /= max(1.0 - tr, 1e-6);
+                    depth_w /= max(1.0 - tr, 1e-6);
+                    tr = 0.0;
                     done = true;
                     break;
                 }

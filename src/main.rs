@@ -24,6 +24,10 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Render one frame of a CloudMap to PNG, headless.
     Render(cmd::render::Args),
+    /// Top-down render vs the CloudMap: Dice, IoU, precision, recall; a CI gate with --min-dice.
+    Score(cmd::score::Args),
+    /// The main job on the embedded sample: ingest, render a few views, print the Dice score.
+    Demo(cmd::demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -52,6 +56,8 @@ fn main() -> ExitCode {
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Ingest(a) => cmd::ingest::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::Score(a) => cmd::score::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
     };
     match result {
         Ok(code) => code,

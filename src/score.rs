@@ -2,6 +2,9 @@
 //! them with the Dice coefficient (paper eq. 28), IoU, precision and recall; draw a diff image.
 
 use serde::Serialize;
+use stratus_ingest::cloudmap::CloudMap;
+
+use crate::render::{RenderError, Renderer, Settings, View};
 
 /// Overlap counts and the scores derived from them. "A" is the render, "B" the map.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -71,6 +74,122 @@ pub fn diff_image(render: &[bool], map: &[bool]) -> Vec<[u8; 3]> {
             (false, false) => [0, 0, 0],
         })
         .collect()
+}
+
+/// Render threshold: a pixel is cloud when the top-down opacity exceeds this.
+pub const RENDER_THRESHOLD: f32 = 0.5;
+/// Map threshold: a pixel is cloud when the map's coverage exceeds this. Measured, not guessed:
+/// on a 0 → 1 coverage ramp the renderer's mean top-down opacity crosses 0.5 between coverage
+/// 0.50 and 0.55 for every layer and preset (`cargo run --release --example coverage_ramp`).
+pub const MAP_THRESHOLD: f32 = 0.5;
+
+/// A CloudMap channel (0 R low, 1 G middle, 2 B high, 3 A total) resampled bilinearly at the
+/// pixel centres of a `w`×`h` grid over the same region.
+pub fn map_channel(map: &CloudMap, channel: usize, w: u32, h: u32) -> Vec<f32> {
+    let (mw, mh) = (map.width(), map.height());
+    let at = |i: usize, j: usize| map.texels[j * mw + i][channel] as f32 / 65535.0;
+    let mut out = Vec::with_capacity(w as usize * h as usize);
+    for j in 0..h as usize {
+        let y = ((j as f64 + 0.5) * mh as f64 / h as f64 - 0.5).clamp(0.0, (mh - 1) as f64);
+        let (y0, fy) = (y.floor() as usize, (y - y.floor()) as f32);
+        let y1 = (y0 + 1).min(mh - 1);
+        for i in 0..w as usize {
+            let x = ((i as f64 + 0.5) * mw as f64 / w as f64 - 0.5).clamp(0.0, (mw - 1) as f64);
+            let (x0, fx) = (x.floor() as usize, (x - x.floor()) as f32);
+            let x1 = (x0 + 1).min(mw - 1);
+            let top = at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx;
+            let bot = at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx;
+            out.push(top * (1.0 - fy) + bot * fy);
+        }
+    }
+    out
+}
+
+/// One scored comparison (a layer, or the total).
+#[derive(Clone, Debug, Serialize)]
+pub struct Scored {
+    pub layer: String,
+    #[serde(flatten)]
+    pub similarity: Similarity,
+    pub note: Option<String>,
+    #[serde(skip)]
+    pub render_mask: Vec<bool>,
+    #[serde(skip)]
+    pub map_mask: Vec<bool>,
+}
+
+/// Everything `stratus score` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub map: String,
+    pub preset: String,
+    pub width: u32,
+    pub height: u32,
+    pub render_threshold: f32,
+    pub map_threshold: f32,
+    pub total: Scored,
+    pub layers: Vec<Scored>,
+}
+
+fn scored(layer: &str, render: Vec<bool>, map: Vec<bool>) -> Scored {
+    let similarity = compare(&render, &map);
+    let note = if similarity.both_empty() {
+        Some("both masks are empty: nothing to draw and nothing drawn (DSC 1 by definition)".into())
+    } else if similarity.render_px == 0 || similarity.map_px == 0 {
+        Some(format!(
+            "the {} mask is empty",
+            if similarity.render_px == 0 { "render" } else { "map" }
+        ))
+    } else {
+        None
+    };
+    Scored {
+        layer: layer.into(),
+        similarity,
+        note,
+        render_mask: render,
+        map_mask: map,
+    }
+}
+
+/// Render the map top-down (all layers, then each present layer alone) and score each render
+/// against the map's matching channel.
+pub fn score(
+    renderer: &mut Renderer,
+    map: &CloudMap,
+    settings: &Settings,
+    width: u32,
+    height: u32,
+    thresholds: (f32, f32),
+) -> Result<Report, RenderError> {
+    let (rt, mt) = thresholds;
+    let mut one = |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
+        let mut s = settings.clone();
+        for k in 0..3 {
+            s.layers_on[k] = settings.layers_on[k] && layers_on[k];
+        }
+        let out = renderer.render(&View::TopDown, width, height, &s)?;
+        let render = mask(&out.alpha(), rt);
+        let m = map_channel(map, channel, width, height);
+        Ok(scored(name, render, mask(&m, mt)))
+    };
+    let total = one([true; 3], 3, "total")?;
+    let mut layers = Vec::new();
+    for l in &map.meta.layers {
+        let mut on = [false; 3];
+        on[l.channel] = true;
+        layers.push(one(on, l.channel, l.kind.name())?);
+    }
+    Ok(Report {
+        map: map.meta.image.clone(),
+        preset: String::new(),
+        width,
+        height,
+        render_threshold: rt,
+        map_threshold: mt,
+        total,
+        layers,
+    })
 }
 
 #[cfg(test)]

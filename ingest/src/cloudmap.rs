@@ -31,6 +31,69 @@ impl CloudMap {
         self.texels[j * self.width() + i][3] as f32 / 65535.0
     }
 
+    /// A made-up map (tests, benchmarks, stability cases): coverage per layer slot (low, middle,
+    /// high) from `cover(lat, lon)`, clamped to 0..1; `bands` gives each present layer's altitudes.
+    pub fn from_fn(
+        region: crate::region::Region,
+        width: u32,
+        height: u32,
+        bands: &[(crate::meta::LayerKind, f64, f64)],
+        valid_time: &str,
+        cover: impl Fn(f64, f64) -> [f64; 3] + Sync,
+    ) -> CloudMap {
+        use crate::meta::{AltitudeSource, LayerMeta, SourceMeta};
+        let (w, h) = (width as usize, height as usize);
+        let texels: Vec<[u16; 4]> = (0..w * h)
+            .map(|idx| {
+                let (i, j) = (idx % w, idx / w);
+                let c = cover(region.pixel_lat(j, h), region.pixel_lon(i, w));
+                let mut t = [0u16; 4];
+                for &(kind, _, _) in bands {
+                    let k = kind.channel();
+                    t[k] = (c[k].clamp(0.0, 1.0) * 65535.0).round() as u16;
+                }
+                t[3] = t[0].max(t[1]).max(t[2]);
+                t
+            })
+            .collect();
+        let layers = bands
+            .iter()
+            .map(|&(kind, base_m, top_m)| LayerMeta {
+                kind,
+                channel: kind.channel(),
+                levels_hpa: vec![],
+                rh_cr: kind.default_rh_cr(),
+                base_m,
+                top_m,
+                altitude_source: AltitudeSource::StandardAtmosphere,
+                mean_coverage: 0.0,
+                max_coverage: 0.0,
+            })
+            .collect();
+        CloudMap {
+            meta: CloudMapMeta {
+                format: FORMAT.to_string(),
+                image: "synthetic.png".into(),
+                region,
+                width,
+                height,
+                layers,
+                interpolation: "synthetic".into(),
+                source: SourceMeta {
+                    file: "synthetic".into(),
+                    reference_time: valid_time.into(),
+                    forecast_step_h: 0.0,
+                    valid_time: valid_time.into(),
+                    grid_ni: 0,
+                    grid_nj: 0,
+                    grid_di_deg: 0.0,
+                    grid_dj_deg: 0.0,
+                },
+            },
+            texels,
+        }
+    }
+
     /// Load a CloudMap from its sidecar (`MAP.json`), checking the PNG agrees with it.
     pub fn load(sidecar: &Path) -> Result<CloudMap> {
         let bad = |msg: String| IngestError::BadCloudMap {

@@ -249,6 +249,13 @@ impl Renderer {
         }
     }
 
+    /// Swap in another CloudMap (keeps the device, noise and pipelines).
+    pub fn set_map(&mut self, map: &CloudMap) {
+        self.weather = weather::WeatherMap::upload(&self.gpu, map);
+        self.meta = map.meta.clone();
+        self.targets = None;
+    }
+
     fn ensure_targets(&mut self, width: u32, height: u32) {
         if self
             .targets
@@ -297,14 +304,10 @@ impl Renderer {
 
     /// The sky for a view: computed from the time and place, or the override.
     pub fn sky(&self, view: &View, settings: &Settings) -> Result<Sky, RenderError> {
-        let (lat, lon, fwd) = match view {
-            View::Perspective(c) => (c.lat_deg, c.lon_deg, true),
-            View::TopDown => {
-                let (lat, lon) = self.meta.region.centre();
-                (lat, lon, false)
-            }
+        let (lat, lon) = match view {
+            View::Perspective(c) => (c.lat_deg, c.lon_deg),
+            View::TopDown => self.meta.region.centre(),
         };
-        let _ = fwd;
         Ok(match settings.sun_override {
             Some(enu) => {
                 if !enu.is_finite() || enu.length() < 1e-9 {

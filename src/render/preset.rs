@@ -33,10 +33,10 @@ impl Preset {
         let on = Shortcuts::all();
         match self {
             Preset::Fast => MarchParams {
-                step_min_m: 80.0,
-                step_growth: 0.012,
-                step_max_m: 2000.0,
-                max_steps: 160,
+                step_min_m: 100.0,
+                step_growth: 0.02,
+                step_max_m: 3000.0,
+                max_steps: 200,
                 light_steps: 2,
                 light_step_m: 150.0,
                 early_exit: 0.05,
@@ -44,10 +44,10 @@ impl Preset {
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
-                step_min_m: 40.0,
-                step_growth: 0.006,
-                step_max_m: 1000.0,
-                max_steps: 320,
+                step_min_m: 50.0,
+                step_growth: 0.01,
+                step_max_m: 1500.0,
+                max_steps: 400,
                 light_steps: 3,
                 light_step_m: 100.0,
                 early_exit: 0.02,
@@ -55,9 +55,9 @@ impl Preset {
                 shortcuts: on,
             },
             Preset::High => MarchParams {
-                step_min_m: 20.0,
-                step_growth: 0.003,
-                step_max_m: 500.0,
+                step_min_m: 25.0,
+                step_growth: 0.005,
+                step_max_m: 800.0,
                 max_steps: 800,
                 light_steps: 4,
                 light_step_m: 70.0,

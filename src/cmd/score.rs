@@ -1,0 +1,128 @@
+//! `stratus score`: top-down render vs the CloudMap, Dice and friends, optionally a CI gate.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::region::parse_size;
+
+use super::ingest::IngestOpts;
+use super::render::{save_png, LookOpts};
+use crate::render::Renderer;
+use crate::score::{self, Report};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// CloudMap sidecar (MAP.json). Or give a GRIB2 file with --grib and the ingest options.
+    #[arg(long, conflicts_with = "grib", required_unless_present = "grib")]
+    pub map: Option<PathBuf>,
+    /// GRIB2 forecast to ingest in memory and score end to end (needs --region).
+    #[arg(long)]
+    pub grib: Option<PathBuf>,
+    #[command(flatten)]
+    pub ingest: Option<IngestOpts>,
+    /// Render size WxH (default: the map's, at most 1024 on the longer side).
+    #[arg(long = "score-size")]
+    pub score_size: Option<String>,
+    #[command(flatten)]
+    pub look: LookOpts,
+    /// Opacity above which a rendered pixel counts as cloud.
+    #[arg(long, default_value_t = score::RENDER_THRESHOLD)]
+    pub render_threshold: f32,
+    /// Coverage above which a map pixel counts as cloud.
+    #[arg(long, default_value_t = score::MAP_THRESHOLD)]
+    pub map_threshold: f32,
+    /// Write the total's diff picture (white both, orange render only, blue map only).
+    #[arg(long)]
+    pub diff: Option<PathBuf>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Exit 1 when the total DSC is below this (the CI gate).
+    #[arg(long)]
+    pub min_dice: Option<f64>,
+}
+
+pub fn default_size(map: &CloudMap) -> (u32, u32) {
+    let (w, h) = (map.meta.width, map.meta.height);
+    let k = (w.max(h) as f64 / 1024.0).max(1.0);
+    (((w as f64 / k).round() as u32).max(1), ((h as f64 / k).round() as u32).max(1))
+}
+
+pub fn load_or_ingest(map: &Option<PathBuf>, grib: &Option<PathBuf>, ingest: &Option<IngestOpts>) -> anyhow::Result<CloudMap> {
+    match (map, grib) {
+        (Some(m), _) => Ok(CloudMap::load(m)?),
+        (None, Some(g)) => {
+            let opts = ingest
+                .as_ref()
+                .context("--grib needs the ingest options (at least --region)")?;
+            Ok(opts.plan(g)?.build())
+        }
+        (None, None) => anyhow::bail!("give --map MAP.json or --grib FILE.grib2"),
+    }
+}
+
+pub fn print_report(r: &Report) {
+    println!(
+        "{} top-down {}×{} ({} preset), render opacity > {} vs map coverage > {}",
+        r.map, r.width, r.height, r.preset, r.render_threshold, r.map_threshold
+    );
+    println!("{:<8} {:>7} {:>7} {:>9} {:>7} {:>9} {:>9}", "layer", "DSC", "IoU", "precision", "recall", "render px", "map px");
+    for s in std::iter::once(&r.total).chain(&r.layers) {
+        let m = &s.similarity;
+        println!(
+            "{:<8} {:>7.4} {:>7.4} {:>9.4} {:>7.4} {:>9} {:>9}{}",
+            s.layer,
+            m.dice,
+            m.iou,
+            m.precision,
+            m.recall,
+            m.render_px,
+            m.map_px,
+            s.note.as_ref().map_or(String::new(), |n| format!("  ({n})"))
+        );
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    for (name, t) in [("render", a.render_threshold), ("map", a.map_threshold)] {
+        if !(0.0..1.0).contains(&t) {
+            anyhow::bail!("--{name}-threshold {t} must be in 0..1");
+        }
+    }
+    if let Some(d) = &a.diff {
+        if d.extension().and_then(|e| e.to_str()) != Some("png") {
+            anyhow::bail!("{}: --diff must be a .png file", d.display());
+        }
+    }
+    let map = load_or_ingest(&a.map, &a.grib, &a.ingest)?;
+    let settings = a.look.settings(&map)?;
+    let (w, h) = match &a.score_size {
+        Some(s) => parse_size(s)?,
+        None => default_size(&map),
+    };
+    let mut renderer = Renderer::new(a.look.gpu()?, &map);
+    let mut report = score::score(&mut renderer, &map, &settings, w, h, (a.render_threshold, a.map_threshold))?;
+    report.preset = a.look.preset.name().into();
+    if let Some(d) = &a.diff {
+        let px = score::diff_image(&report.total.render_mask, &report.total.map_mask);
+        let img = image::RgbaImage::from_fn(w, h, |x, y| {
+            let p = px[(y * w + x) as usize];
+            image::Rgba([p[0], p[1], p[2], 255])
+        });
+        save_png(d, &img).with_context(|| d.display().to_string())?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&report);
+    }
+    if let Some(min) = a.min_dice {
+        if report.total.similarity.dice < min {
+            eprintln!("score: DSC {:.4} is below --min-dice {min}", report.total.similarity.dice);
+            return Ok(ExitCode::from(1));
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,194 @@
+//! Renderer behaviour on a real wgpu adapter (lavapipe in CI): what the clouds must and must not
+//! do, asserted on the picture, never on golden bytes. One renderer is shared (noise is made once).
+
+use std::sync::{Mutex, MutexGuard, OnceLock};
+
+use chrono::{DateTime, Utc};
+use glam::DVec3;
+use stratus::render::camera::{ecef, Camera};
+use stratus::render::{Gpu, Output, Preset, RenderError, Renderer, Settings, View};
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::meta::LayerKind;
+use stratus_ingest::region::Region;
+
+const NOON: &str = "2024-06-21T12:00:00Z";
+
+fn region(s: f64, n: f64, w: f64, e: f64) -> Region {
+    Region {
+        south: s,
+        north: n,
+        west: w,
+        east: e,
+    }
+}
+
+/// One middle layer 3–5 km, coverage from `f(lat, lon)`.
+fn map_with(r: Region, f: impl Fn(f64, f64) -> f64 + Sync) -> CloudMap {
+    CloudMap::from_fn(r, 200, 200, &[(LayerKind::Middle, 3000.0, 5000.0)], NOON, |la, lo| {
+        [0.0, f(la, lo), 0.0]
+    })
+}
+
+fn renderer() -> MutexGuard<'static, Renderer> {
+    static R: OnceLock<Mutex<Renderer>> = OnceLock::new();
+    let m = R.get_or_init(|| {
+        let gpu = Gpu::new(None).expect("a wgpu adapter (install mesa-vulkan-drivers)");
+        eprintln!("adapter: {}", stratus::render::gpu::describe(&gpu.info));
+        Mutex::new(Renderer::new(gpu, &map_with(region(0.0, 1.0, 0.0, 1.0), |_, _| 0.0)))
+    });
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn settings() -> Settings {
+    Settings::new(Preset::Balanced, DateTime::parse_from_rfc3339(NOON).unwrap().with_timezone(&Utc))
+}
+
+fn render(map: &CloudMap, view: View, w: u32, h: u32, s: &Settings) -> Output {
+    let mut r = renderer();
+    r.set_map(map);
+    r.render(&view, w, h, s).expect("render")
+}
+
+fn all_finite(o: &Output) -> bool {
+    o.cloud.iter().all(|c| c.iter().all(|v| v.is_finite()))
+}
+
+fn luma(o: &Output) -> Vec<f64> {
+    o.pixels
+        .chunks_exact(4)
+        .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+        .collect()
+}
+
+fn above(lat: f64, lon: f64) -> View {
+    View::Perspective(Camera::new(lat, lon, 9000.0, 0.0, -60.0))
+}
+
+#[test]
+fn zero_cover_draws_nothing_and_samples_nothing() {
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 0.0);
+    for view in [above(30.0, 110.0), View::TopDown] {
+        let o = render(&map, view, 64, 48, &settings());
+        assert!(o.alpha().iter().all(|&a| a == 0.0), "{view:?}");
+        assert_eq!(o.stats.density_samples, 0, "{view:?}: {:?}", o.stats);
+        assert!(all_finite(&o));
+    }
+}
+
+#[test]
+fn full_cover_from_above_is_opaque() {
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 1.0);
+    let top = render(&map, View::TopDown, 64, 48, &settings());
+    let min = top.alpha().into_iter().fold(1.0f32, f32::min);
+    assert!(min > 0.99, "top-down min alpha {min}");
+    let o = render(&map, above(30.0, 110.0), 64, 48, &settings());
+    let min = o.alpha().into_iter().fold(1.0f32, f32::min);
+    assert!(min > 0.99, "from 9 km min alpha {min}");
+    assert!(all_finite(&o));
+}
+
+#[test]
+fn inside_the_cloud_is_fog_like() {
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 1.0);
+    let cam = Camera::new(30.0, 110.0, 3800.0, 45.0, 0.0);
+    let inside = render(&map, View::Perspective(cam), 96, 64, &settings());
+    let outside = render(&map, above(30.0, 110.0), 96, 64, &settings());
+    let spread = |o: &Output| {
+        let mut l = luma(o);
+        l.sort_by(f64::total_cmp);
+        (l[l.len() * 95 / 100] - l[l.len() * 5 / 100], l[l.len() / 2])
+    };
+    let (s_in, m_in) = spread(&inside);
+    let (s_out, _) = spread(&outside);
+    assert!(inside.alpha().iter().all(|&a| a > 0.98), "inside the layer every ray is in cloud");
+    assert!(m_in > 20.0, "fog is lit, not black: median luma {m_in}");
+    assert!(s_in < 0.5 * s_out.max(1.0) || s_in < 25.0, "inside spread {s_in}, above {s_out}");
+}
+
+#[test]
+fn same_inputs_same_image() {
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |la, lo| {
+        ((la - 30.0).powi(2) + (lo - 110.0).powi(2) < 9.0) as u8 as f64
+    });
+    let v = View::Perspective(Camera::new(28.0, 110.0, 6000.0, 0.0, -10.0));
+    let a = render(&map, v, 80, 60, &settings());
+    let b = render(&map, v, 80, 60, &settings());
+    assert!(a.alpha().iter().any(|&x| x > 0.5), "the view shows cloud");
+    assert_eq!(a.pixels, b.pixels);
+}
+
+/// Alpha-weighted centroid of the cloud, in pixels.
+fn centroid(o: &Output) -> (f64, f64) {
+    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+    for (k, c) in o.cloud.iter().enumerate() {
+        let w = c[3] as f64;
+        sx += w * ((k % o.width as usize) as f64 + 0.5);
+        sy += w * ((k / o.width as usize) as f64 + 0.5);
+        sw += w;
+    }
+    (sx / sw, sy / sw)
+}
+
+#[test]
+fn cloud_appears_where_the_map_puts_it() {
+    // A round, fully covered patch 0.4° across at 31.0°N 112.0°E: opaque, so its centroid is
+    // the patch's and not the noise's.
+    let (lat0, lon0) = (31.0, 112.0);
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |la, lo| {
+        let d2 = (la - lat0).powi(2) + ((lo - lon0) * lat0.to_radians().cos()).powi(2);
+        (d2 < 0.2f64.powi(2)) as u8 as f64
+    });
+    let (w, h) = (160, 120);
+    // Looking straight down from 60 km, north up, slightly off the cloud.
+    let cam = Camera::new(30.9, 111.8, 60_000.0, 0.0, -90.0);
+    let o = render(&map, View::Perspective(cam), w, h, &settings());
+    let (cx, cy) = centroid(&o);
+    // The cloud's mass sits around 4 km; project that point with the CPU's f64 camera.
+    let (px, py) = cam.project(ecef(lat0, lon0, 4000.0), w, h).unwrap();
+    let err = ((cx - px).powi(2) + (cy - py).powi(2)).sqrt() / w as f64;
+    assert!(err < 0.01, "rendered centroid ({cx:.1},{cy:.1}) vs map ({px:.1},{py:.1}): {err:.4} of width");
+    // Top-down: the same cloud at its map pixel.
+    let t = render(&map, View::TopDown, 200, 200, &settings());
+    let (tx, ty) = centroid(&t);
+    let (mx, my) = map.meta.region.to_pixel(lat0, lon0, 200, 200).unwrap();
+    let err = ((tx - mx).powi(2) + (ty - my).powi(2)).sqrt() / 200.0;
+    assert!(err < 0.01, "top-down ({tx:.1},{ty:.1}) vs ({mx:.1},{my:.1})");
+}
+
+#[test]
+fn bad_views_are_errors_not_panics() {
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 0.5);
+    let mut r = renderer();
+    r.set_map(&map);
+    let s = settings();
+    let below = View::Perspective(Camera::new(30.0, 110.0, -5.0, 0.0, 0.0));
+    assert!(matches!(r.render(&below, 8, 8, &s), Err(RenderError::BadCamera(_))));
+    let mut c = Camera::new(30.0, 110.0, 100.0, 0.0, 0.0);
+    c.forward_enu = DVec3::ZERO;
+    assert!(matches!(r.render(&View::Perspective(c), 8, 8, &s), Err(RenderError::BadCamera(_))));
+    let mut s0 = settings();
+    s0.sun_override = Some(DVec3::ZERO);
+    let ok_cam = View::Perspective(Camera::new(30.0, 110.0, 100.0, 0.0, 0.0));
+    assert!(matches!(r.render(&ok_cam, 8, 8, &s0), Err(RenderError::BadSun(_))));
+    assert!(matches!(r.render(&ok_cam, 0, 8, &s), Err(RenderError::BadSize(..))));
+}
+
+#[test]
+fn night_is_dark_but_clouds_are_not_holes() {
+    // Full moon 2024-06-22 01:08 UTC; at 110°E it is 08:20 local time… so use 0°E, local midnight.
+    let map = map_with(region(-10.0, 10.0, -10.0, 10.0), |_, lo| (lo < 0.0) as u8 as f64);
+    let mut s = settings();
+    s.time = DateTime::parse_from_rfc3339("2024-06-22T00:30:00Z").unwrap().with_timezone(&Utc);
+    let cam = Camera::new(0.0, 0.0, 8000.0, 270.0, -15.0);
+    let o = render(&map, View::Perspective(cam), 96, 64, &s);
+    assert!(all_finite(&o));
+    let l = luma(&o);
+    let a = o.alpha();
+    let cloud: Vec<f64> = l.iter().zip(&a).filter(|(_, &a)| a > 0.9).map(|(l, _)| *l).collect();
+    let sky: Vec<f64> = l.iter().zip(&a).filter(|(_, &a)| a == 0.0).map(|(l, _)| *l).collect();
+    assert!(!cloud.is_empty() && !sky.is_empty());
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert!(mean(&cloud) >= mean(&sky), "moonlit cloud {} vs night sky {}", mean(&cloud), mean(&sky));
+    let noon = render(&map, View::Perspective(cam), 96, 64, &settings());
+    assert!(mean(&luma(&noon)) > mean(&l), "night is darker than day");
+}
