@@ -17,7 +17,8 @@ fn main() -> anyhow::Result<()> {
         west: 100.0,
         east: 110.0,
     };
-    let t: DateTime<Utc> = DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")?.with_timezone(&Utc);
+    let t: DateTime<Utc> =
+        DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")?.with_timezone(&Utc);
     let (w, h) = (400u32, 200u32);
     let bins = 20usize;
     for (kind, base, top) in [
@@ -25,10 +26,17 @@ fn main() -> anyhow::Result<()> {
         (LayerKind::Middle, 3500.0, 6000.0),
         (LayerKind::High, 7000.0, 10000.0),
     ] {
-        let map = CloudMap::from_fn(region, w, h, &[(kind, base, top)], "2024-06-21T12:00:00Z", |_, lon| {
-            let c = (lon - 100.0) / 10.0;
-            [c, c, c]
-        });
+        let map = CloudMap::from_fn(
+            region,
+            w,
+            h,
+            &[(kind, base, top)],
+            "2024-06-21T12:00:00Z",
+            |_, lon| {
+                let c = (lon - 100.0) / 10.0;
+                [c, c, c]
+            },
+        );
         let mut r = Renderer::new(Gpu::new(None)?, &map);
         for p in [Preset::Fast, Preset::Balanced, Preset::High] {
             let out = r.render(&View::TopDown, w, h, &Settings::new(p, t))?;
@@ -40,13 +48,18 @@ fn main() -> anyhow::Result<()> {
                 sum[b] += c[3] as f64;
                 n[b] += 1;
             }
-            let row: Vec<String> = (0..bins).map(|b| format!("{:.2}", sum[b] / n[b] as f64)).collect();
+            let row: Vec<String> = (0..bins)
+                .map(|b| format!("{:.2}", sum[b] / n[b] as f64))
+                .collect();
             let cross = (0..bins).find(|&b| sum[b] / n[b] as f64 >= 0.5);
             println!(
                 "{:6} {:9} crosses 0.5 at coverage {}  [{}]",
                 kind.name(),
                 p.name(),
-                cross.map_or("never".into(), |b| format!("{:.3}", (b as f64 + 0.5) / bins as f64)),
+                cross.map_or("never".into(), |b| format!(
+                    "{:.3}",
+                    (b as f64 + 0.5) / bins as f64
+                )),
                 row.join(" ")
             );
         }

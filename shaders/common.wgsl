@@ -20,7 +20,7 @@ struct Frame {
     region2: vec4<f32>,     // top-down altitude (m), map width, map height, empty-skip length (m)
     layer_base: vec4<f32>,  // base of low, middle, high (m); w lowest base
     layer_top: vec4<f32>,   // top of low, middle, high (m); w highest top
-    layer_on: vec4<f32>,    // 1/0 per layer; w coverage multiplier
+    layer_on: vec4<f32>,    // per layer: density scale, 0 when off; w coverage multiplier
     light: vec4<f32>,       // density multiplier, extinction per unit density (1/m), HG g, Beer clamp ac
     march: vec4<f32>,       // min step (m), step growth per metre of distance, max step (m), max steps
     march2: vec4<f32>,      // light steps, first light step (m), early-exit transmittance, flags

@@ -39,7 +39,8 @@ fn weather_at(pos: vec3<f32>) -> Sample {
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
         let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
-        s.cm = clamp(w.rgb * f.layer_on.w, vec3<f32>(0.0), vec3<f32>(1.0)) * f.layer_on.xyz;
+        let on = select(vec3<f32>(0.0), vec3<f32>(1.0), f.layer_on.xyz > vec3<f32>(0.0));
+        s.cm = clamp(w.rgb * f.layer_on.w, vec3<f32>(0.0), vec3<f32>(1.0)) * on;
     }
     return s;
 }
@@ -101,7 +102,7 @@ fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         let base = f.layer_base[k];
         let top = f.layer_top[k];
         if (h >= base && h <= top && (s.cm[k] > 0.0 || !cull)) {
-            d += layer_density(np, s.cm[k], (h - base) / max(top - base, 1.0), detail);
+            d += layer_density(np, s.cm[k], (h - base) / max(top - base, 1.0), detail) * f.layer_on[k];
         }
     }
     return d * f.light.x;

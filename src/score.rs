@@ -138,7 +138,11 @@ fn scored(layer: &str, render: Vec<bool>, map: Vec<bool>) -> Scored {
     } else if similarity.render_px == 0 || similarity.map_px == 0 {
         Some(format!(
             "the {} mask is empty",
-            if similarity.render_px == 0 { "render" } else { "map" }
+            if similarity.render_px == 0 {
+                "render"
+            } else {
+                "map"
+            }
         ))
     } else {
         None
@@ -163,16 +167,17 @@ pub fn score(
     thresholds: (f32, f32),
 ) -> Result<Report, RenderError> {
     let (rt, mt) = thresholds;
-    let mut one = |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
-        let mut s = settings.clone();
-        for k in 0..3 {
-            s.layers_on[k] = settings.layers_on[k] && layers_on[k];
-        }
-        let out = renderer.render(&View::TopDown, width, height, &s)?;
-        let render = mask(&out.alpha(), rt);
-        let m = map_channel(map, channel, width, height);
-        Ok(scored(name, render, mask(&m, mt)))
-    };
+    let mut one =
+        |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
+            let mut s = settings.clone();
+            for k in 0..3 {
+                s.layers_on[k] = settings.layers_on[k] && layers_on[k];
+            }
+            let out = renderer.render(&View::TopDown, width, height, &s)?;
+            let render = mask(&out.alpha(), rt);
+            let m = map_channel(map, channel, width, height);
+            Ok(scored(name, render, mask(&m, mt)))
+        };
     let total = one([true; 3], 3, "total")?;
     let mut layers = Vec::new();
     for l in &map.meta.layers {

@@ -145,7 +145,11 @@ mod tests {
         // 2024-06-20 20:51 UTC solstice: declination +23.44°; at 12:00 UTC over 0°E the Sun
         // culminates (equation of time about −1.7 min) at 90 − 51.5 + 23.4 = 61.9° over London.
         let sky = Sky::at(utc("2024-06-21T12:02:00Z"), 51.5, 0.0);
-        assert!((sky.sun_elevation_deg - 61.9).abs() < 0.3, "{}", sky.sun_elevation_deg);
+        assert!(
+            (sky.sun_elevation_deg - 61.9).abs() < 0.3,
+            "{}",
+            sky.sun_elevation_deg
+        );
         let dec = sun_dir(utc("2024-06-21T00:00:00Z")).z.asin().to_degrees();
         assert!((dec - 23.44).abs() < 0.05, "{dec}");
     }

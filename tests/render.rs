@@ -24,9 +24,14 @@ fn region(s: f64, n: f64, w: f64, e: f64) -> Region {
 
 /// One middle layer 3–5 km, coverage from `f(lat, lon)`.
 fn map_with(r: Region, f: impl Fn(f64, f64) -> f64 + Sync) -> CloudMap {
-    CloudMap::from_fn(r, 200, 200, &[(LayerKind::Middle, 3000.0, 5000.0)], NOON, |la, lo| {
-        [0.0, f(la, lo), 0.0]
-    })
+    CloudMap::from_fn(
+        r,
+        200,
+        200,
+        &[(LayerKind::Middle, 3000.0, 5000.0)],
+        NOON,
+        |la, lo| [0.0, f(la, lo), 0.0],
+    )
 }
 
 fn renderer() -> MutexGuard<'static, Renderer> {
@@ -34,13 +39,21 @@ fn renderer() -> MutexGuard<'static, Renderer> {
     let m = R.get_or_init(|| {
         let gpu = Gpu::new(None).expect("a wgpu adapter (install mesa-vulkan-drivers)");
         eprintln!("adapter: {}", stratus::render::gpu::describe(&gpu.info));
-        Mutex::new(Renderer::new(gpu, &map_with(region(0.0, 1.0, 0.0, 1.0), |_, _| 0.0)))
+        Mutex::new(Renderer::new(
+            gpu,
+            &map_with(region(0.0, 1.0, 0.0, 1.0), |_, _| 0.0),
+        ))
     });
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 fn settings() -> Settings {
-    Settings::new(Preset::Balanced, DateTime::parse_from_rfc3339(NOON).unwrap().with_timezone(&Utc))
+    Settings::new(
+        Preset::Balanced,
+        DateTime::parse_from_rfc3339(NOON)
+            .unwrap()
+            .with_timezone(&Utc),
+    )
 }
 
 fn render(map: &CloudMap, view: View, w: u32, h: u32, s: &Settings) -> Output {
@@ -100,9 +113,15 @@ fn inside_the_cloud_is_fog_like() {
     };
     let (s_in, m_in) = spread(&inside);
     let (s_out, _) = spread(&outside);
-    assert!(inside.alpha().iter().all(|&a| a > 0.98), "inside the layer every ray is in cloud");
+    assert!(
+        inside.alpha().iter().all(|&a| a > 0.98),
+        "inside the layer every ray is in cloud"
+    );
     assert!(m_in > 20.0, "fog is lit, not black: median luma {m_in}");
-    assert!(s_in < 0.5 * s_out.max(1.0) || s_in < 25.0, "inside spread {s_in}, above {s_out}");
+    assert!(
+        s_in < 0.5 * s_out.max(1.0) || s_in < 25.0,
+        "inside spread {s_in}, above {s_out}"
+    );
 }
 
 #[test]
@@ -146,13 +165,19 @@ fn cloud_appears_where_the_map_puts_it() {
     // The cloud's mass sits around 4 km; project that point with the CPU's f64 camera.
     let (px, py) = cam.project(ecef(lat0, lon0, 4000.0), w, h).unwrap();
     let err = ((cx - px).powi(2) + (cy - py).powi(2)).sqrt() / w as f64;
-    assert!(err < 0.01, "rendered centroid ({cx:.1},{cy:.1}) vs map ({px:.1},{py:.1}): {err:.4} of width");
+    assert!(
+        err < 0.01,
+        "rendered centroid ({cx:.1},{cy:.1}) vs map ({px:.1},{py:.1}): {err:.4} of width"
+    );
     // Top-down: the same cloud at its map pixel.
     let t = render(&map, View::TopDown, 200, 200, &settings());
     let (tx, ty) = centroid(&t);
     let (mx, my) = map.meta.region.to_pixel(lat0, lon0, 200, 200).unwrap();
     let err = ((tx - mx).powi(2) + (ty - my).powi(2)).sqrt() / 200.0;
-    assert!(err < 0.01, "top-down ({tx:.1},{ty:.1}) vs ({mx:.1},{my:.1})");
+    assert!(
+        err < 0.01,
+        "top-down ({tx:.1},{ty:.1}) vs ({mx:.1},{my:.1})"
+    );
 }
 
 #[test]
@@ -162,33 +187,64 @@ fn bad_views_are_errors_not_panics() {
     r.set_map(&map);
     let s = settings();
     let below = View::Perspective(Camera::new(30.0, 110.0, -5.0, 0.0, 0.0));
-    assert!(matches!(r.render(&below, 8, 8, &s), Err(RenderError::BadCamera(_))));
+    assert!(matches!(
+        r.render(&below, 8, 8, &s),
+        Err(RenderError::BadCamera(_))
+    ));
     let mut c = Camera::new(30.0, 110.0, 100.0, 0.0, 0.0);
     c.forward_enu = DVec3::ZERO;
-    assert!(matches!(r.render(&View::Perspective(c), 8, 8, &s), Err(RenderError::BadCamera(_))));
+    assert!(matches!(
+        r.render(&View::Perspective(c), 8, 8, &s),
+        Err(RenderError::BadCamera(_))
+    ));
     let mut s0 = settings();
     s0.sun_override = Some(DVec3::ZERO);
     let ok_cam = View::Perspective(Camera::new(30.0, 110.0, 100.0, 0.0, 0.0));
-    assert!(matches!(r.render(&ok_cam, 8, 8, &s0), Err(RenderError::BadSun(_))));
-    assert!(matches!(r.render(&ok_cam, 0, 8, &s), Err(RenderError::BadSize(..))));
+    assert!(matches!(
+        r.render(&ok_cam, 8, 8, &s0),
+        Err(RenderError::BadSun(_))
+    ));
+    assert!(matches!(
+        r.render(&ok_cam, 0, 8, &s),
+        Err(RenderError::BadSize(..))
+    ));
 }
 
 #[test]
 fn night_is_dark_but_clouds_are_not_holes() {
     // Full moon 2024-06-22 01:08 UTC; at 110°E it is 08:20 local time… so use 0°E, local midnight.
-    let map = map_with(region(-10.0, 10.0, -10.0, 10.0), |_, lo| (lo < 0.0) as u8 as f64);
+    let map = map_with(region(-10.0, 10.0, -10.0, 10.0), |_, lo| {
+        (lo < 0.0) as u8 as f64
+    });
     let mut s = settings();
-    s.time = DateTime::parse_from_rfc3339("2024-06-22T00:30:00Z").unwrap().with_timezone(&Utc);
+    s.time = DateTime::parse_from_rfc3339("2024-06-22T00:30:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
     let cam = Camera::new(0.0, 0.0, 8000.0, 270.0, -15.0);
     let o = render(&map, View::Perspective(cam), 96, 64, &s);
     assert!(all_finite(&o));
     let l = luma(&o);
     let a = o.alpha();
-    let cloud: Vec<f64> = l.iter().zip(&a).filter(|(_, &a)| a > 0.9).map(|(l, _)| *l).collect();
-    let sky: Vec<f64> = l.iter().zip(&a).filter(|(_, &a)| a == 0.0).map(|(l, _)| *l).collect();
+    let cloud: Vec<f64> = l
+        .iter()
+        .zip(&a)
+        .filter(|(_, &a)| a > 0.9)
+        .map(|(l, _)| *l)
+        .collect();
+    let sky: Vec<f64> = l
+        .iter()
+        .zip(&a)
+        .filter(|(_, &a)| a == 0.0)
+        .map(|(l, _)| *l)
+        .collect();
     assert!(!cloud.is_empty() && !sky.is_empty());
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    assert!(mean(&cloud) >= mean(&sky), "moonlit cloud {} vs night sky {}", mean(&cloud), mean(&sky));
+    assert!(
+        mean(&cloud) >= mean(&sky),
+        "moonlit cloud {} vs night sky {}",
+        mean(&cloud),
+        mean(&sky)
+    );
     let noon = render(&map, View::Perspective(cam), 96, 64, &settings());
     assert!(mean(&luma(&noon)) > mean(&l), "night is darker than day");
 }

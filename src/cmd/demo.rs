@@ -43,9 +43,10 @@ fn sample_path() -> PathBuf {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let t0 = Instant::now();
     let grib = a.grib.clone().unwrap_or_else(sample_path);
-    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("{}: cannot create", a.out.display()))?;
     let opts = IngestOpts {
-        region: "30,60,-40,0".into(),
+        region: Some("30,60,-40,0".into()),
         size: "800x600".into(),
         level: None,
         top_hpa: stratus_ingest::forecast::DEFAULT_TOP_HPA,
@@ -61,7 +62,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let sidecar = plan.write(&png, &|d| pb.set_position(d as u64))?;
     pb.finish_and_clear();
     let map = CloudMap::load(&sidecar)?;
-    println!("ingested {} → {} ({}×{})", grib.display(), sidecar.display(), map.meta.width, map.meta.height);
+    println!(
+        "ingested {} → {} ({}×{})",
+        grib.display(),
+        sidecar.display(),
+        map.meta.width,
+        map.meta.height
+    );
 
     let settings = a.look.settings(&map)?;
     let (w, h) = stratus_ingest::region::parse_size(&a.size)?;
@@ -70,10 +77,26 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // (file, camera, time override): above the front at the map's valid time, the same at dusk,
     // inside the middle layer, and the horizon from the ground.
     let views: [(&str, Camera, Option<chrono::DateTime<chrono::Utc>>); 4] = [
-        ("above-noon.png", Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0), None),
-        ("above-dusk.png", Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0), Some(dusk)),
-        ("inside-layer.png", Camera::new(47.0, -17.0, 4_500.0, 60.0, 0.0), None),
-        ("horizon-ground.png", Camera::new(36.0, -28.6, 50.0, 45.0, 10.0), None),
+        (
+            "above-noon.png",
+            Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0),
+            None,
+        ),
+        (
+            "above-dusk.png",
+            Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0),
+            Some(dusk),
+        ),
+        (
+            "inside-layer.png",
+            Camera::new(47.0, -17.0, 4_500.0, 60.0, 0.0),
+            None,
+        ),
+        (
+            "horizon-ground.png",
+            Camera::new(36.0, -28.6, 50.0, 45.0, 10.0),
+            None,
+        ),
     ];
     let pb = progress_bar(views.len() as u64, "render views");
     for (name, cam, time) in views {
@@ -89,12 +112,21 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "{}: {:.0} ms{}",
             path.display(),
             out.timings.wall_ms,
-            out.timings.march_ms.map_or(String::new(), |m| format!(" (march {m:.1} ms GPU)"))
+            out.timings
+                .march_ms
+                .map_or(String::new(), |m| format!(" (march {m:.1} ms GPU)"))
         );
     }
     pb.finish_and_clear();
     let (sw, sh) = super::score::default_size(&map);
-    let report = score::score(&mut r, &map, &settings, sw, sh, (score::RENDER_THRESHOLD, score::MAP_THRESHOLD))?;
+    let report = score::score(
+        &mut r,
+        &map,
+        &settings,
+        sw,
+        sh,
+        (score::RENDER_THRESHOLD, score::MAP_THRESHOLD),
+    )?;
     let px = score::diff_image(&report.total.render_mask, &report.total.map_mask);
     let img = image::RgbaImage::from_fn(sw, sh, |x, y| {
         let p = px[(y * sw + x) as usize];

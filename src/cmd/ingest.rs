@@ -17,7 +17,7 @@ use stratus_ingest::spline::Interp;
 pub struct IngestOpts {
     /// Region as S,N,W,E in degrees (longitudes -180..180 or 0..360; W > E crosses the date line).
     #[arg(long, allow_hyphen_values = true)]
-    pub region: String,
+    pub region: Option<String>,
     /// Output size WxH in pixels (each side 1..=16384).
     #[arg(long, default_value = "1024x1024")]
     pub size: String,
@@ -43,7 +43,11 @@ pub struct IngestOpts {
 
 impl IngestOpts {
     pub fn options(&self) -> anyhow::Result<IngestOptions> {
-        let region = Region::parse(&self.region)?;
+        let region = Region::parse(
+            self.region
+                .as_deref()
+                .ok_or_else(|| anyhow::anyhow!("--region S,N,W,E is required to ingest"))?,
+        )?;
         let (width, height) = parse_size(&self.size)?;
         let rh_cr = match self.rh_cr {
             Some(x) => [x; 3],

@@ -3,10 +3,10 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use crate::render::{gpu, Camera, Gpu, Preset, Renderer, Settings, View};
 use anyhow::Context;
 use chrono::{DateTime, Utc};
 use glam::DVec3;
-use crate::render::{gpu, Camera, Gpu, Preset, Renderer, Settings, View};
 use stratus_ingest::cloudmap::{write_atomic, CloudMap};
 use stratus_ingest::region::parse_size;
 
@@ -57,7 +57,9 @@ pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
         .or_else(|_| {
             chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M:%S").map(|n| n.and_utc())
         })
-        .or_else(|_| chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc()))
+        .or_else(|_| {
+            chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc())
+        })
         .with_context(|| format!("time \"{s}\" is not ISO 8601 (e.g. 2011-01-15T06:00:00Z)"))
 }
 
@@ -65,9 +67,8 @@ impl LookOpts {
     pub fn settings(&self, map: &CloudMap) -> anyhow::Result<Settings> {
         let time = match &self.time {
             Some(t) => parse_time(t)?,
-            None => parse_time(&map.meta.source.valid_time).with_context(|| {
-                "the map's valid time is unreadable: give --time".to_string()
-            })?,
+            None => parse_time(&map.meta.source.valid_time)
+                .with_context(|| "the map's valid time is unreadable: give --time".to_string())?,
         };
         let mut s = Settings::new(self.preset, time);
         if let Some(d) = &self.sun_dir {
@@ -99,7 +100,11 @@ impl LookOpts {
         eprintln!(
             "stratus: adapter {}{}",
             gpu::describe(&gpu.info),
-            if gpu.is_cpu() { " — a CPU driver: expect seconds per frame" } else { "" }
+            if gpu.is_cpu() {
+                " — a CPU driver: expect seconds per frame"
+            } else {
+                ""
+            }
         );
         Ok(gpu)
     }
@@ -150,7 +155,12 @@ pub fn parse_camera(s: &str, heading: f64, pitch: f64, fov: f64) -> anyhow::Resu
 pub fn save_png(path: &Path, img: &image::RgbaImage) -> anyhow::Result<()> {
     write_atomic(path, |w| {
         image::codecs::png::PngEncoder::new(w)
-            .write_image(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgba8)
+            .write_image(
+                img.as_raw(),
+                img.width(),
+                img.height(),
+                image::ExtendedColorType::Rgba8,
+            )
             .map_err(|e| e.to_string())
     })?;
     Ok(())

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long)]
     pub grib: Option<PathBuf>,
     #[command(flatten)]
-    pub ingest: Option<IngestOpts>,
+    pub ingest: IngestOpts,
     /// Render size WxH (default: the map's, at most 1024 on the longer side).
     #[arg(long = "score-size")]
     pub score_size: Option<String>,
@@ -47,18 +47,20 @@ pub struct Args {
 pub fn default_size(map: &CloudMap) -> (u32, u32) {
     let (w, h) = (map.meta.width, map.meta.height);
     let k = (w.max(h) as f64 / 1024.0).max(1.0);
-    (((w as f64 / k).round() as u32).max(1), ((h as f64 / k).round() as u32).max(1))
+    (
+        ((w as f64 / k).round() as u32).max(1),
+        ((h as f64 / k).round() as u32).max(1),
+    )
 }
 
-pub fn load_or_ingest(map: &Option<PathBuf>, grib: &Option<PathBuf>, ingest: &Option<IngestOpts>) -> anyhow::Result<CloudMap> {
+pub fn load_or_ingest(
+    map: &Option<PathBuf>,
+    grib: &Option<PathBuf>,
+    ingest: &IngestOpts,
+) -> anyhow::Result<CloudMap> {
     match (map, grib) {
         (Some(m), _) => Ok(CloudMap::load(m)?),
-        (None, Some(g)) => {
-            let opts = ingest
-                .as_ref()
-                .context("--grib needs the ingest options (at least --region)")?;
-            Ok(opts.plan(g)?.build())
-        }
+        (None, Some(g)) => Ok(ingest.plan(g)?.build()),
         (None, None) => anyhow::bail!("give --map MAP.json or --grib FILE.grib2"),
     }
 }
@@ -68,7 +70,10 @@ pub fn print_report(r: &Report) {
         "{} top-down {}×{} ({} preset), render opacity > {} vs map coverage > {}",
         r.map, r.width, r.height, r.preset, r.render_threshold, r.map_threshold
     );
-    println!("{:<8} {:>7} {:>7} {:>9} {:>7} {:>9} {:>9}", "layer", "DSC", "IoU", "precision", "recall", "render px", "map px");
+    println!(
+        "{:<8} {:>7} {:>7} {:>9} {:>7} {:>9} {:>9}",
+        "layer", "DSC", "IoU", "precision", "recall", "render px", "map px"
+    );
     for s in std::iter::once(&r.total).chain(&r.layers) {
         let m = &s.similarity;
         println!(
@@ -80,7 +85,9 @@ pub fn print_report(r: &Report) {
             m.recall,
             m.render_px,
             m.map_px,
-            s.note.as_ref().map_or(String::new(), |n| format!("  ({n})"))
+            s.note
+                .as_ref()
+                .map_or(String::new(), |n| format!("  ({n})"))
         );
     }
 }
@@ -103,8 +110,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         None => default_size(&map),
     };
     let mut renderer = Renderer::new(a.look.gpu()?, &map);
-    let mut report = score::score(&mut renderer, &map, &settings, w, h, (a.render_threshold, a.map_threshold))?;
+    let mut report = score::score(
+        &mut renderer,
+        &map,
+        &settings,
+        w,
+        h,
+        (a.render_threshold, a.map_threshold),
+    )?;
     report.preset = a.look.preset.name().into();
+    if let Some(src) = a.map.as_ref().or(a.grib.as_ref()) {
+        report.map = src.display().to_string();
+    }
     if let Some(d) = &a.diff {
         let px = score::diff_image(&report.total.render_mask, &report.total.map_mask);
         let img = image::RgbaImage::from_fn(w, h, |x, y| {
@@ -120,7 +137,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(min) = a.min_dice {
         if report.total.similarity.dice < min {
-            eprintln!("score: DSC {:.4} is below --min-dice {min}", report.total.similarity.dice);
+            eprintln!(
+                "score: DSC {:.4} is below --min-dice {min}",
+                report.total.similarity.dice
+            );
             return Ok(ExitCode::from(1));
         }
     }

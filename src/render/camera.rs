@@ -79,17 +79,26 @@ impl Camera {
             return bad(format!("latitude {} is outside -90..90", self.lat_deg));
         }
         if self.alt_m < 0.0 {
-            return bad(format!("altitude {} m is below the ground (sea level is 0)", self.alt_m));
+            return bad(format!(
+                "altitude {} m is below the ground (sea level is 0)",
+                self.alt_m
+            ));
         }
         if self.alt_m > MAX_ALTITUDE_M {
-            return bad(format!("altitude {} m is above the {} m limit", self.alt_m, MAX_ALTITUDE_M));
+            return bad(format!(
+                "altitude {} m is above the {} m limit",
+                self.alt_m, MAX_ALTITUDE_M
+            ));
         }
         let len = self.forward_enu.length();
         if !len.is_finite() || len < 1e-9 {
             return bad("view direction has zero length".into());
         }
         if !(self.fov_deg > 0.5 && self.fov_deg < 170.0) {
-            return bad(format!("field of view {}° is outside 0.5..170", self.fov_deg));
+            return bad(format!(
+                "field of view {}° is outside 0.5..170",
+                self.fov_deg
+            ));
         }
         Ok(())
     }
@@ -129,7 +138,10 @@ impl Camera {
         let aspect = width as f64 / height as f64;
         let x = v.dot(b.right) / z / (tn * aspect);
         let y = v.dot(b.view_up) / z / tn;
-        Some(((x + 1.0) * 0.5 * width as f64, (1.0 - y) * 0.5 * height as f64))
+        Some((
+            (x + 1.0) * 0.5 * width as f64,
+            (1.0 - y) * 0.5 * height as f64,
+        ))
     }
 }
 
@@ -156,11 +168,15 @@ mod tests {
     fn project_puts_the_look_at_point_in_the_centre() {
         let cam = Camera::new(10.0, 20.0, 3000.0, 90.0, -20.0);
         let b = cam.basis();
-        let (x, y) = cam.project(b.position + b.forward * 5000.0, 800, 600).unwrap();
+        let (x, y) = cam
+            .project(b.position + b.forward * 5000.0, 800, 600)
+            .unwrap();
         assert!((x - 400.0).abs() < 1e-6 && (y - 300.0).abs() < 1e-6);
         // Heading 90 looks east: a point to the north is on the left.
         let (e, n, _) = enu_basis(10.0, 20.0);
-        let (xl, _) = cam.project(b.position + e * 5000.0 + n * 1000.0, 800, 600).unwrap();
+        let (xl, _) = cam
+            .project(b.position + e * 5000.0 + n * 1000.0, 800, 600)
+            .unwrap();
         assert!(xl < 400.0);
     }
 

@@ -63,8 +63,20 @@ fn luminance(c: [f64; 3]) -> f64 {
 pub fn auto_exposure(sky: &Sky) -> f64 {
     let day = ((sky.sun_elevation_deg.to_radians().sin() + 0.15) / 0.2).clamp(0.0, 1.0);
     let day = day * day * (3.0 - 2.0 * day);
-    let key = luminance(sky.sun.colour) * SUN_I * 0.1 + 0.15 * day + luminance(sky.moon.colour) * SUN_I * 0.12;
+    let key = luminance(sky.sun.colour) * SUN_I * 0.1
+        + 0.15 * day
+        + luminance(sky.moon.colour) * SUN_I * 0.12;
     0.6 / key.max(1e-9) * (0.2 + 0.8 * day)
+}
+
+/// Layer thickness the density is calibrated for (m).
+pub const REFERENCE_THICKNESS_M: f32 = 2000.0;
+
+/// Density scale for a layer of the given thickness: a column's optical depth follows its
+/// coverage, not the spacing of the pressure levels the band came from (a single 400 hPa level
+/// gives a band under 1 km thick; all levels above 440 hPa one near 10 km). Limited to 0.25..4.
+pub fn thickness_scale(thickness_m: f32) -> f32 {
+    (REFERENCE_THICKNESS_M / thickness_m.max(1.0)).clamp(0.25, 4.0)
 }
 
 pub struct FrameInput<'a> {
@@ -93,7 +105,7 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             if s.layers_on[k] {
                 layer_base[k] = b.base_m;
                 layer_top[k] = b.top_m;
-                layer_on[k] = 1.0;
+                layer_on[k] = thickness_scale(b.top_m - b.base_m);
                 lo = lo.min(b.base_m);
                 hi = hi.max(b.top_m);
             }
@@ -158,7 +170,14 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     }
     let sun_key = sky.sun_elevation_deg > -0.5;
     let light = |l: &Light, w: f64| v4(l.dir, w);
-    let col = |l: &Light, w: f64| [l.colour[0] as f32, l.colour[1] as f32, l.colour[2] as f32, w as f32];
+    let col = |l: &Light, w: f64| {
+        [
+            l.colour[0] as f32,
+            l.colour[1] as f32,
+            l.colour[2] as f32,
+            w as f32,
+        ]
+    };
     let visibility = s.visibility_m.max(100.0);
 
     Ok(FrameUniforms {
@@ -171,7 +190,12 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         sun_col: col(&sky.sun, sky.moon_phase),
         moon_dir: light(&sky.moon, 0.0),
         moon_col: col(&sky.moon, 0.0),
-        region: [r.south as f32, r.north as f32, r.west as f32, r.lon_span() as f32],
+        region: [
+            r.south as f32,
+            r.north as f32,
+            r.west as f32,
+            r.lon_span() as f32,
+        ],
         region2: [
             hi + 1000.0,
             inp.weather.width as f32,
@@ -182,8 +206,18 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         layer_top,
         layer_on,
         light: [s.density_mul, s.extinction, s.hg_g, s.beer_clamp],
-        march: [p.step_min_m, p.step_growth, p.step_max_m, p.max_steps as f32],
-        march2: [p.light_steps as f32, p.light_step_m, p.early_exit, flags as f32],
+        march: [
+            p.step_min_m,
+            p.step_growth,
+            p.step_max_m,
+            p.max_steps as f32,
+        ],
+        march2: [
+            p.light_steps as f32,
+            p.light_step_m,
+            p.early_exit,
+            flags as f32,
+        ],
         misc: [
             DETAIL_PERIOD_M as f32,
             (exposure_base * 2f64.powf(s.exposure_ev)) as f32,

@@ -115,7 +115,10 @@ impl Settings {
             return bad(format!("Beer clamp ac {} must be in 0..1", self.beer_clamp));
         }
         if !self.exposure_ev.is_finite() || self.exposure_ev.abs() > 30.0 {
-            return bad(format!("exposure {} EV must be within ±30", self.exposure_ev));
+            return bad(format!(
+                "exposure {} EV must be within ±30",
+                self.exposure_ev
+            ));
         }
         if !(self.visibility_m.is_finite() && self.visibility_m > 0.0) {
             return bad(format!("visibility {} m must be > 0", self.visibility_m));
@@ -127,7 +130,10 @@ impl Settings {
                 m.step_min_m, m.step_max_m
             ));
         }
-        if !(m.step_growth.is_finite() && m.step_growth >= 0.0) || m.max_steps == 0 || m.max_steps > 100_000 {
+        if !(m.step_growth.is_finite() && m.step_growth >= 0.0)
+            || m.max_steps == 0
+            || m.max_steps > 100_000
+        {
             return bad("step growth must be ≥ 0 and max steps in 1..=100000".into());
         }
         if m.light_steps > 16 || m.light_step_m.is_nan() || m.light_step_m <= 0.0 {
@@ -288,10 +294,18 @@ impl Renderer {
             U::STORAGE_BINDING | U::TEXTURE_BINDING | U::COPY_SRC,
             "cloud",
         );
-        let color = tex(self.present.format, U::RENDER_ATTACHMENT | U::COPY_SRC, "frame");
+        let color = tex(
+            self.present.format,
+            U::RENDER_ATTACHMENT | U::COPY_SRC,
+            "frame",
+        );
         let cloud_view = cloud.create_view(&Default::default());
-        let march_bind = self.march.bind(&self.gpu, &self.weather, &self.noise, &cloud_view);
-        let present_bind = self.present.bind(&self.gpu, &self.march.uniforms, &cloud_view);
+        let march_bind = self
+            .march
+            .bind(&self.gpu, &self.weather, &self.noise, &cloud_view);
+        let present_bind = self
+            .present
+            .bind(&self.gpu, &self.march.uniforms, &cloud_view);
         self.targets = Some(Targets {
             width,
             height,

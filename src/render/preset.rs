@@ -17,7 +17,12 @@ pub enum Preset {
 }
 
 impl Preset {
-    pub const ALL: [Preset; 4] = [Preset::Fast, Preset::Balanced, Preset::High, Preset::Reference];
+    pub const ALL: [Preset; 4] = [
+        Preset::Fast,
+        Preset::Balanced,
+        Preset::High,
+        Preset::Reference,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {

@@ -12,10 +12,16 @@ pub struct Pending {
 
 impl Pending {
     /// Queue a copy of a whole 2D texture with `bpp` bytes per pixel.
-    pub fn texture(gpu: &Gpu, enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture, bpp: u32) -> Pending {
+    pub fn texture(
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        tex: &wgpu::Texture,
+        bpp: u32,
+    ) -> Pending {
         let (w, h) = (tex.width(), tex.height());
         let row_bytes = w * bpp;
-        let padded = row_bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded = row_bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size: padded as u64 * h as u64,

@@ -157,7 +157,8 @@ impl WeatherMap {
         let deg_m = EARTH_R.to_radians();
         let max_abs_lat = r.south.abs().max(r.north.abs()).min(89.9);
         let cell_lat_m = (r.north - r.south) / h as f64 * COARSE_CELL as f64 * deg_m;
-        let cell_lon_m = r.lon_span() / w as f64 * COARSE_CELL as f64 * deg_m * max_abs_lat.to_radians().cos();
+        let cell_lon_m =
+            r.lon_span() / w as f64 * COARSE_CELL as f64 * deg_m * max_abs_lat.to_radians().cos();
         let skip_m = (0.95 * cell_lat_m.min(cell_lon_m)) as f32;
         let mut bands = [None; 3];
         for l in &map.meta.layers {
@@ -207,7 +208,11 @@ mod tests {
 
     #[test]
     fn downscale_averages() {
-        let t = vec![[1.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 1.0]];
+        let t = vec![
+            [1.0, 0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0, 1.0],
+        ];
         let (d, w, h) = downscale(&t, 3, 1, 2);
         assert_eq!((w, h), (2, 1));
         assert_eq!(d[0][0], 0.5);

@@ -1,0 +1,199 @@
+//! The Dice gate end to end on lavapipe with the real GFS sample, and proof that the score
+//! falls when the render is wrong.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use stratus::render::{Gpu, Preset, Renderer, Settings, View};
+use stratus::score;
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::forecast::{Forecast, LevelSelect};
+use stratus_ingest::pipeline::{IngestOptions, Plan};
+use stratus_ingest::region::Region;
+use stratus_ingest::spline::Interp;
+
+fn shared(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared")
+        .join(rel)
+}
+
+const GFS: &str = "data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2";
+/// The CI gate. Measured here (docs/score.md): 0.974–0.976 at 400 hPa and 0.988–0.989 with all
+/// layers, every preset. 0.93 leaves room for a different adapter's rounding at mask edges and is
+/// still far above the paper's 0.827; a wrong render scores below 0.75 (test below).
+const GATE: &str = "0.93";
+
+fn stratus(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(args)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("run stratus")
+}
+
+fn gate(extra: &[&str], preset: &str) {
+    let g = shared(GFS);
+    let mut args = vec![
+        "score",
+        "--grib",
+        g.to_str().unwrap(),
+        "--region",
+        "0,55,39,105",
+        "--size",
+        "520x440",
+        "--preset",
+        preset,
+        "--min-dice",
+        GATE,
+    ];
+    args.extend_from_slice(extra);
+    let o = stratus(&args);
+    let out = String::from_utf8_lossy(&o.stdout);
+    println!("{out}");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{out}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(out.contains("total"), "{out}");
+}
+
+#[test]
+fn gate_east_asia_400hpa_every_preset() {
+    for p in ["fast", "balanced", "high"] {
+        gate(&["--level", "400", "--rh-cr", "0.65"], p);
+    }
+}
+
+#[test]
+fn gate_east_asia_all_layers_every_preset() {
+    for p in ["fast", "balanced", "high"] {
+        gate(&[], p);
+    }
+}
+
+fn east_asia(level: Option<f64>) -> CloudMap {
+    let bytes = std::fs::read(shared(GFS)).unwrap();
+    let sel = match level {
+        Some(l) => LevelSelect::One(l),
+        None => LevelSelect::AllBelow(100.0),
+    };
+    let fc = Forecast::from_bytes(Path::new("gfs"), &bytes, sel).unwrap();
+    let opts = IngestOptions {
+        region: Region::parse("0,55,39,105").unwrap(),
+        width: 520,
+        height: 440,
+        rh_cr: [0.80, 0.65, 0.65],
+        interp: Interp::Spline,
+    };
+    Plan::new(&fc, &opts).unwrap().build()
+}
+
+/// The map moved east by `dx` pixels (wrapping), or flipped north–south.
+fn altered(map: &CloudMap, dx: usize, flip: bool) -> CloudMap {
+    let (w, h) = (map.width(), map.height());
+    let mut m = map.clone();
+    for j in 0..h {
+        for i in 0..w {
+            let sj = if flip { h - 1 - j } else { j };
+            m.texels[j * w + (i + dx) % w] = map.texels[sj * w + i];
+        }
+    }
+    m
+}
+
+#[test]
+fn wrong_renders_score_far_lower() {
+    let map = east_asia(Some(400.0));
+    let mut r = Renderer::new(Gpu::new(None).unwrap(), &map);
+    let s = Settings::new(Preset::Fast, chrono::Utc::now());
+    let (w, h) = (map.meta.width, map.meta.height);
+    let dice_against = |r: &mut Renderer, rendered: &CloudMap, truth: &CloudMap| {
+        r.set_map(rendered);
+        let out = r.render(&View::TopDown, w, h, &s).unwrap();
+        let rm = score::mask(&out.alpha(), score::RENDER_THRESHOLD);
+        let mm = score::mask(&score::map_channel(truth, 3, w, h), score::MAP_THRESHOLD);
+        score::compare(&rm, &mm).dice
+    };
+    let truth = dice_against(&mut r, &map, &map);
+    let shifted = dice_against(&mut r, &altered(&map, w as usize / 10, false), &map);
+    let flipped = dice_against(&mut r, &altered(&map, 0, true), &map);
+    println!("true {truth:.4}, shifted a tenth {shifted:.4}, flipped {flipped:.4}");
+    assert!(truth > 0.93, "{truth}");
+    assert!(shifted < truth - 0.2, "shifted {shifted} vs {truth}");
+    assert!(flipped < truth - 0.2, "flipped {flipped} vs {truth}");
+}
+
+#[test]
+fn empty_masks_and_the_gate_failing() {
+    // An all-zero real field: both masks empty → DSC 1 with a note, not a division by zero.
+    let z = shared("data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
+    let o = stratus(&[
+        "score",
+        "--grib",
+        z.to_str().unwrap(),
+        "--region",
+        "0,55,39,105",
+        "--size",
+        "200x160",
+        "--level",
+        "0.7",
+        "--json",
+        "--preset",
+        "fast",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["total"]["dice"], 1.0);
+    assert!(v["total"]["note"]
+        .as_str()
+        .unwrap()
+        .contains("both masks are empty"));
+    // An impossible gate exits 1 (not 2: the run worked, the score is too low).
+    let g = shared(GFS);
+    let dir = tempfile::tempdir().unwrap();
+    let diff = dir.path().join("d.png");
+    let o = stratus(&[
+        "score",
+        "--grib",
+        g.to_str().unwrap(),
+        "--region",
+        "0,55,39,105",
+        "--size",
+        "200x160",
+        "--level",
+        "400",
+        "--min-dice",
+        "0.99999",
+        "--preset",
+        "fast",
+        "--diff",
+        diff.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("below --min-dice"));
+    let img = image::open(&diff).unwrap();
+    assert_eq!((img.width(), img.height()), (200, 160));
+}
+
+#[test]
+fn one_empty_mask_scores_zero() {
+    let a = vec![false; 100];
+    let mut b = vec![false; 100];
+    b[3] = true;
+    let s = score::compare(&a, &b);
+    assert_eq!(s.dice, 0.0);
+    assert!(s.dice.is_finite() && s.iou.is_finite());
+}
