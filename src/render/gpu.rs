@@ -36,9 +36,20 @@ pub fn describe(info: &wgpu::AdapterInfo) -> String {
 impl Gpu {
     /// Open the best adapter, or the first whose description contains `want` (case-insensitive).
     pub fn new(want: Option<&str>) -> Result<Gpu, RenderError> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        Gpu::with_instance(instance, want, None)
+        // Vulkan/Metal/DX12 first; GL only when none of those has an adapter: initialising EGL
+        // without a display prints driver noise. WGPU_BACKEND still decides when set.
+        let chosen = std::env::var_os("WGPU_BACKEND").is_some();
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if !chosen {
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        match Gpu::with_instance(wgpu::Instance::new(desc), want, None) {
+            Err(RenderError::NoAdapter) if !chosen => {
+                let all = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+                Gpu::with_instance(wgpu::Instance::new(all), want, None)
+            }
+            other => other,
+        }
     }
 
     /// Like [`Gpu::new`] on a given instance; `surface` restricts to adapters that can present to it.
@@ -47,11 +58,13 @@ impl Gpu {
         want: Option<&str>,
         surface: Option<&wgpu::Surface<'_>>,
     ) -> Result<Gpu, RenderError> {
-        let mut adapters: Vec<wgpu::Adapter> =
-            pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        let list = |b: wgpu::Backends| -> Vec<wgpu::Adapter> {
+            pollster::block_on(instance.enumerate_adapters(b))
                 .into_iter()
                 .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
-                .collect();
+                .collect()
+        };
+        let mut adapters = list(wgpu::Backends::all());
         if adapters.is_empty() {
             return Err(RenderError::NoAdapter);
         }

@@ -1,0 +1,91 @@
+//! `stratus render` through the binary: a real frame, and every bad input a clear one-line
+//! error with exit code 2 and no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn stratus(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(args)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("run stratus")
+}
+
+/// Ingest the embedded sample into `dir`, returning the sidecar.
+fn sample_map(dir: &Path) -> PathBuf {
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/synthetic-gfs-rh.grib2");
+    let png = dir.join("m.png");
+    let o = stratus(&[
+        "ingest", sample.to_str().unwrap(), "--region", "30,60,-40,0", "--size", "160x120", "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("m.json")
+}
+
+fn render(map: &Path, camera: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut a = vec![
+        "render", "--map", map.to_str().unwrap(), "--camera", camera, "--heading", "45", "--pitch", "-12",
+        "--size", "64x36", "--preset", "fast", "--out", out.to_str().unwrap(),
+    ];
+    a.extend_from_slice(extra);
+    stratus(&a)
+}
+
+fn refused(o: &std::process::Output, needle: &str, out: &Path) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    // Mesa's Wayland probe prints "XDG_RUNTIME_DIR is invalid" on machines without a display
+    // session; that is the driver's, not ours.
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("error") && !l.contains("XDG_RUNTIME_DIR"))
+        .collect();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(lines[0].contains(needle), "wanted \"{needle}\" in: {err}");
+    assert!(!out.exists(), "nothing may be written on error");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn renders_a_frame_with_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = sample_map(dir.path());
+    let out = dir.path().join("f.png");
+    let o = render(&map, "45.5,-22,12000", &out, &["--timings"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (64, 36));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("march") && stdout.contains("per pixel"), "{stdout}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("adapter"));
+}
+
+#[test]
+fn bad_inputs_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let map = sample_map(d);
+    let out = d.join("f.png");
+    // Missing sidecar.
+    refused(&render(&d.join("nope.json"), "45,-22,9000", &out, &[]), "nope.json", &out);
+    // Malformed sidecar.
+    let bad = d.join("bad.json");
+    std::fs::write(&bad, "{ not json").unwrap();
+    refused(&render(&bad, "45,-22,9000", &out, &[]), "bad.json", &out);
+    // A PNG whose size disagrees with its sidecar.
+    let text = std::fs::read_to_string(&map).unwrap().replace("\"width\": 160", "\"width\": 161");
+    let lying = d.join("lying.json");
+    std::fs::write(&lying, text).unwrap();
+    refused(&render(&lying, "45,-22,9000", &out, &[]), "sidecar says 161x120", &out);
+    // Camera below the ground.
+    refused(&render(&map, "45,-22,-10", &out, &[]), "below the ground", &out);
+    // Sun direction of zero length.
+    refused(&render(&map, "45,-22,9000", &out, &["--sun-dir", "0,0,0"]), "zero length", &out);
+    // Unreadable camera and time.
+    refused(&render(&map, "45,-22", &out, &[]), "--camera", &out);
+    refused(&render(&map, "45,-22,9000", &out, &["--time", "yesterday"]), "ISO 8601", &out);
+    // No such adapter.
+    refused(&render(&map, "45,-22,9000", &out, &["--adapter", "no-such-gpu-xyz"]), "no adapter matches", &out);
+}
