@@ -24,7 +24,7 @@ struct Frame {
     light: vec4<f32>,       // density multiplier, extinction per unit density (1/m), HG g, Beer clamp ac
     march: vec4<f32>,       // min step (m), step growth per metre of distance, max step (m), max steps
     march2: vec4<f32>,      // light steps, first light step (m), early-exit transmittance, flags
-    misc: vec4<f32>,        // detail-noise period (m), exposure, haze extinction (1/m), coarse cell (px)
+    misc: vec4<f32>,        // detail-noise period (m), exposure, haze extinction (1/m), march px per target px
     size: vec4<f32>,        // output width, height, frame index, 0
 };
 

@@ -158,14 +158,18 @@ fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) ->
     return tau;
 }
 
+const MIN_SEG_STEPS: f32 = 16.0;
+
 fn march(r: Ray, jitter: f32) -> vec4<f32> {
     let mu = dot(r.d, r.up);
     let outer = shell_hits(r.h, mu, f.layer_top.w);
     if (outer.y < 0.0 || outer.x > outer.y) {
         return vec4<f32>(0.0);
     }
-    // Beyond five visibility lengths the haze hides everything (size.w).
-    var end_all = min(outer.y, f.size.w);
+    // Beyond five visibility lengths the haze hides everything (size.w). Haze lives in the low
+    // atmosphere, so the length counts from where the ray enters the cloud shells: a camera in
+    // orbit still sees the deck below it.
+    var end_all = min(outer.y, max(outer.x, 0.0) + f.size.w);
     let ground = shell_hits(r.h, mu, 0.0);
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
@@ -201,13 +205,17 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         if (seg.y <= seg.x) {
             continue;
         }
-        var t = seg.x + jitter * clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z);
+        // At least MIN_SEG_STEPS samples per crossing of the layer shells: a steep ray through
+        // a thin layer (400 hPa is ~700 m) would otherwise take one or two jittered samples and
+        // show the jitter pattern instead of the cloud.
+        let seg_dt = max((seg.y - seg.x) / MIN_SEG_STEPS, 1.0);
+        var t = seg.x + jitter * min(clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z), seg_dt);
         loop {
             if (t >= seg.y || steps >= max_steps) {
                 break;
             }
             steps += 1u;
-            let dt = clamp(f.march.x + f.march.y * t, f.march.x, f.march.z);
+            let dt = min(clamp(f.march.x + f.march.y * t, f.march.x, f.march.z), seg_dt);
             let pos = origin + r.d * t;
             if (skip && coarse_empty(pos)) {
                 local_count[C_SKIPPED] += 1u;

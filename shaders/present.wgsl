@@ -62,6 +62,16 @@ fn background(v: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
+// Set by the pipeline for a non-sRGB target (a window's Bgra8Unorm, which egui prefers): the
+// shader then applies the sRGB transfer curve itself.
+override ENCODE_SRGB: bool = false;
+
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c * 12.92;
+    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, c <= vec3<f32>(0.0031308));
+}
+
 // Narkowicz's fitted ACES curve.
 fn aces(x: vec3<f32>) -> vec3<f32> {
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
@@ -69,12 +79,31 @@ fn aces(x: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
-    let ip = vec2<i32>(in.pos.xy);
-    let c = textureLoad(cloud, ip, 0);
+    // misc.w: march pixels per target pixel (the window may march at a lower resolution).
+    let px = in.pos.xy * f.misc.w;
+    let dims = vec2<i32>(textureDimensions(cloud));
+    let ip = vec2<i32>(px);
+    var c = textureLoad(cloud, clamp(ip, vec2<i32>(0), dims - 1), 0);
+    if (has_flag(f, FLAG_JITTER)) {
+        // The march's interleaved-gradient jitter spreads its values evenly over every 3×3
+        // block of pixels (Jimenez 2014), so a 3×3 mean resolves it; a still frame has no
+        // temporal filter to do that, and thin layers otherwise show the jitter's lattice.
+        c = vec4<f32>(0.0);
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                c += textureLoad(cloud, clamp(ip + vec2<i32>(dx, dy), vec2<i32>(0), dims - 1), 0);
+            }
+        }
+        c /= 9.0;
+    }
     var bg = vec3<f32>(0.0);
     if ((u32(f.march2.w) & FLAG_NO_SKY) == 0u) {
-        bg = background(persp_dir(f, in.pos.xy));
+        bg = background(persp_dir(f, px));
     }
     let lin = bg * (1.0 - c.a) + c.rgb;
-    return vec4<f32>(aces(lin * f.misc.y), 1.0);
+    var out = aces(lin * f.misc.y);
+    if (ENCODE_SRGB) {
+        out = srgb_encode(out);
+    }
+    return vec4<f32>(out, 1.0);
 }

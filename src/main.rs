@@ -26,6 +26,12 @@ enum Command {
     Render(cmd::render::Args),
     /// Top-down render vs the CloudMap: Dice, IoU, precision, recall; a CI gate with --min-dice.
     Score(cmd::score::Args),
+    /// Fly over a CloudMap (or a GRIB2 file) in a window: flight controls, HUD, control panel.
+    Fly(cmd::fly::Args),
+    /// A keyframed flight path rendered headless to PNG frames (MP4 with ffmpeg).
+    Flight(cmd::flight::Args),
+    /// Speed against accuracy: every preset and shortcut on fixed scenes vs the reference.
+    Bench(cmd::bench::Args),
     /// The main job on the embedded sample: ingest, render a few views, print the Dice score.
     Demo(cmd::demo::Args),
 }
@@ -58,6 +64,9 @@ fn main() -> ExitCode {
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
+        Command::Flight(a) => cmd::flight::run(a),
+        Command::Fly(a) => cmd::fly::run(a),
     };
     match result {
         Ok(code) => code,

@@ -170,8 +170,8 @@ pub fn score(
     let mut one =
         |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
             let mut s = settings.clone();
-            for k in 0..3 {
-                s.layers_on[k] = settings.layers_on[k] && layers_on[k];
+            for (on, wanted) in s.layers_on.iter_mut().zip(layers_on) {
+                *on &= wanted;
             }
             let out = renderer.render(&View::TopDown, width, height, &s)?;
             let render = mask(&out.alpha(), rt);

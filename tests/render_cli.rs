@@ -17,7 +17,13 @@ fn sample_map(dir: &Path) -> PathBuf {
     let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/synthetic-gfs-rh.grib2");
     let png = dir.join("m.png");
     let o = stratus(&[
-        "ingest", sample.to_str().unwrap(), "--region", "30,60,-40,0", "--size", "160x120", "--out",
+        "ingest",
+        sample.to_str().unwrap(),
+        "--region",
+        "30,60,-40,0",
+        "--size",
+        "160x120",
+        "--out",
         png.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -26,8 +32,21 @@ fn sample_map(dir: &Path) -> PathBuf {
 
 fn render(map: &Path, camera: &str, out: &Path, extra: &[&str]) -> std::process::Output {
     let mut a = vec![
-        "render", "--map", map.to_str().unwrap(), "--camera", camera, "--heading", "45", "--pitch", "-12",
-        "--size", "64x36", "--preset", "fast", "--out", out.to_str().unwrap(),
+        "render",
+        "--map",
+        map.to_str().unwrap(),
+        "--camera",
+        camera,
+        "--heading",
+        "45",
+        "--pitch",
+        "-12",
+        "--size",
+        "64x36",
+        "--preset",
+        "fast",
+        "--out",
+        out.to_str().unwrap(),
     ];
     a.extend_from_slice(extra);
     stratus(&a)
@@ -58,7 +77,10 @@ fn renders_a_frame_with_timings() {
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (64, 36));
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("march") && stdout.contains("per pixel"), "{stdout}");
+    assert!(
+        stdout.contains("march") && stdout.contains("per pixel"),
+        "{stdout}"
+    );
     assert!(String::from_utf8_lossy(&o.stderr).contains("adapter"));
 }
 
@@ -69,23 +91,49 @@ fn bad_inputs_are_one_line_errors() {
     let map = sample_map(d);
     let out = d.join("f.png");
     // Missing sidecar.
-    refused(&render(&d.join("nope.json"), "45,-22,9000", &out, &[]), "nope.json", &out);
+    refused(
+        &render(&d.join("nope.json"), "45,-22,9000", &out, &[]),
+        "nope.json",
+        &out,
+    );
     // Malformed sidecar.
     let bad = d.join("bad.json");
     std::fs::write(&bad, "{ not json").unwrap();
     refused(&render(&bad, "45,-22,9000", &out, &[]), "bad.json", &out);
     // A PNG whose size disagrees with its sidecar.
-    let text = std::fs::read_to_string(&map).unwrap().replace("\"width\": 160", "\"width\": 161");
+    let text = std::fs::read_to_string(&map)
+        .unwrap()
+        .replace("\"width\": 160", "\"width\": 161");
     let lying = d.join("lying.json");
     std::fs::write(&lying, text).unwrap();
-    refused(&render(&lying, "45,-22,9000", &out, &[]), "sidecar says 161x120", &out);
+    refused(
+        &render(&lying, "45,-22,9000", &out, &[]),
+        "sidecar says 161x120",
+        &out,
+    );
     // Camera below the ground.
-    refused(&render(&map, "45,-22,-10", &out, &[]), "below the ground", &out);
+    refused(
+        &render(&map, "45,-22,-10", &out, &[]),
+        "below the ground",
+        &out,
+    );
     // Sun direction of zero length.
-    refused(&render(&map, "45,-22,9000", &out, &["--sun-dir", "0,0,0"]), "zero length", &out);
+    refused(
+        &render(&map, "45,-22,9000", &out, &["--sun-dir", "0,0,0"]),
+        "zero length",
+        &out,
+    );
     // Unreadable camera and time.
     refused(&render(&map, "45,-22", &out, &[]), "--camera", &out);
-    refused(&render(&map, "45,-22,9000", &out, &["--time", "yesterday"]), "ISO 8601", &out);
+    refused(
+        &render(&map, "45,-22,9000", &out, &["--time", "yesterday"]),
+        "ISO 8601",
+        &out,
+    );
     // No such adapter.
-    refused(&render(&map, "45,-22,9000", &out, &["--adapter", "no-such-gpu-xyz"]), "no adapter matches", &out);
+    refused(
+        &render(&map, "45,-22,9000", &out, &["--adapter", "no-such-gpu-xyz"]),
+        "no adapter matches",
+        &out,
+    );
 }

@@ -147,7 +147,12 @@ impl CloudMap {
         write_atomic(png_path, |w| {
             encode_png16(w, self.meta.width, self.meta.height, 4, &bytes)
         })?;
-        let json = serde_json::to_string_pretty(&self.meta).map_err(|e| IngestError::Write {
+        // The sidecar names the PNG it sits beside, whatever the map was called before.
+        let mut meta = self.meta.clone();
+        if let Some(name) = png_path.file_name() {
+            meta.image = name.to_string_lossy().into_owned();
+        }
+        let json = serde_json::to_string_pretty(&meta).map_err(|e| IngestError::Write {
             path: sidecar.clone(),
             msg: e.to_string(),
         })?;

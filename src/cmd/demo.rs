@@ -32,7 +32,7 @@ pub struct Args {
     pub look: LookOpts,
 }
 
-fn sample_path() -> PathBuf {
+pub fn sample_path() -> PathBuf {
     let here = Path::new(SAMPLE);
     if here.exists() {
         return here.to_path_buf();

@@ -23,6 +23,8 @@ pub struct Camera {
     pub forward_enu: DVec3,
     /// Vertical field of view, degrees.
     pub fov_deg: f64,
+    /// Bank angle, degrees (positive rolls the view clockwise, right wing down).
+    pub roll_deg: f64,
 }
 
 /// What to render.
@@ -66,6 +68,7 @@ impl Camera {
             alt_m,
             forward_enu: heading_pitch_enu(heading_deg, pitch_deg),
             fov_deg: 60.0,
+            roll_deg: 0.0,
         }
     }
 
@@ -94,6 +97,9 @@ impl Camera {
         if !len.is_finite() || len < 1e-9 {
             return bad("view direction has zero length".into());
         }
+        if !self.roll_deg.is_finite() {
+            return bad("roll is not a finite number".into());
+        }
         if !(self.fov_deg > 0.5 && self.fov_deg < 170.0) {
             return bad(format!(
                 "field of view {}° is outside 0.5..170",
@@ -117,6 +123,9 @@ impl Camera {
             east
         };
         let view_up = right.cross(forward).normalize();
+        // Bank: turn right and up about the forward axis.
+        let (sr, cr) = self.roll_deg.to_radians().sin_cos();
+        let (right, view_up) = (right * cr - view_up * sr, view_up * cr + right * sr);
         Basis {
             position: up * (EARTH_R + self.alt_m),
             up,

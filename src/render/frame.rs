@@ -214,7 +214,7 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         ],
         march2: [
             p.light_steps as f32,
-            p.light_step_m,
+            p.light_reach_m / (p.light_steps as f32 + 5.0),
             p.early_exit,
             flags as f32,
         ],
@@ -222,7 +222,7 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             DETAIL_PERIOD_M as f32,
             (exposure_base * 2f64.powf(s.exposure_ev)) as f32,
             (3.912 / visibility) as f32,
-            0.0,
+            1.0,
         ],
         size: [
             inp.width as f32,

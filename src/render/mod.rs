@@ -136,8 +136,12 @@ impl Settings {
         {
             return bad("step growth must be ≥ 0 and max steps in 1..=100000".into());
         }
-        if m.light_steps > 16 || m.light_step_m.is_nan() || m.light_step_m <= 0.0 {
-            return bad("light steps must be ≤ 16 with a positive length".into());
+        if m.light_steps == 0
+            || m.light_steps > 16
+            || m.light_reach_m.is_nan()
+            || m.light_reach_m <= 0.0
+        {
+            return bad("light steps must be in 1..=16 with a positive reach".into());
         }
         if let Some(s) = self.sun_override {
             if !s.is_finite() || s.length() < 1e-9 {
@@ -197,9 +201,10 @@ struct Targets {
     width: u32,
     height: u32,
     cloud: wgpu::Texture,
-    color: wgpu::Texture,
+    cloud_view: wgpu::TextureView,
+    /// Headless output; made on first use.
+    color: Option<wgpu::Texture>,
     march_bind: wgpu::BindGroup,
-    present_bind: wgpu::BindGroup,
 }
 
 struct Queries {
@@ -215,7 +220,8 @@ pub struct Renderer {
     pub weather: weather::WeatherMap,
     noise: noise::NoiseTextures,
     march: march::MarchPass,
-    present: present::PresentPass,
+    /// One present pipeline per target format (headless sRGB, the window's surface format).
+    presents: Vec<present::PresentPass>,
     targets: Option<Targets>,
     queries: Option<Queries>,
 }
@@ -228,7 +234,6 @@ impl Renderer {
         let noise = noise::NoiseTextures::generate(&gpu);
         let weather = weather::WeatherMap::upload(&gpu, map);
         let march = march::MarchPass::new(&gpu);
-        let present = present::PresentPass::new(&gpu, wgpu::TextureFormat::Rgba8UnormSrgb);
         let queries = gpu.timestamps.then(|| Queries {
             set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass times"),
@@ -249,7 +254,7 @@ impl Renderer {
             weather,
             noise,
             march,
-            present,
+            presents: Vec::new(),
             targets: None,
             queries,
         }
@@ -270,50 +275,150 @@ impl Renderer {
         {
             return;
         }
-        let dev = &self.gpu.device;
-        let size = wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
-        let tex = |format, usage, label| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        use wgpu::TextureUsages as U;
-        let cloud = tex(
-            march::CLOUD_FORMAT,
-            U::STORAGE_BINDING | U::TEXTURE_BINDING | U::COPY_SRC,
-            "cloud",
-        );
-        let color = tex(
-            self.present.format,
-            U::RENDER_ATTACHMENT | U::COPY_SRC,
-            "frame",
-        );
+        let cloud = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("cloud"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: march::CLOUD_FORMAT,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
         let cloud_view = cloud.create_view(&Default::default());
         let march_bind = self
             .march
             .bind(&self.gpu, &self.weather, &self.noise, &cloud_view);
-        let present_bind = self
-            .present
-            .bind(&self.gpu, &self.march.uniforms, &cloud_view);
         self.targets = Some(Targets {
             width,
             height,
             cloud,
-            color,
+            cloud_view,
+            color: None,
             march_bind,
-            present_bind,
         });
+    }
+
+    fn present_for(&mut self, format: wgpu::TextureFormat) -> usize {
+        if let Some(i) = self.presents.iter().position(|p| p.format == format) {
+            return i;
+        }
+        self.presents
+            .push(present::PresentPass::new(&self.gpu, format));
+        self.presents.len() - 1
+    }
+
+    /// Record one frame into `enc`: the march at `width`×`height`, then the present pass into
+    /// `target` (any size: the cloud image is scaled to it). Times the passes when it can.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        view: &View,
+        width: u32,
+        height: u32,
+        settings: &Settings,
+        target: &wgpu::TextureView,
+        target_format: wgpu::TextureFormat,
+        target_width: u32,
+    ) -> Result<(), RenderError> {
+        let max = MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d);
+        if width == 0 || height == 0 || width > max || height > max || target_width == 0 {
+            return Err(RenderError::BadSize(width, height, max));
+        }
+        settings.validate()?;
+        let sky = self.sky(view, settings)?;
+        let mut uniforms = frame::build(&frame::FrameInput {
+            view: *view,
+            width,
+            height,
+            sky,
+            region: &self.meta.region,
+            weather: &self.weather,
+            settings,
+            frame_index: settings.frame_index,
+        })?;
+        uniforms.misc[3] = width as f32 / target_width as f32;
+        self.ensure_targets(width, height);
+        let pi = self.present_for(target_format);
+        let Some(t) = self.targets.as_ref() else {
+            return Err(RenderError::Gpu("no render targets".into()));
+        };
+        let gpu = &self.gpu;
+        gpu.queue
+            .write_buffer(&self.march.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        gpu.queue
+            .write_buffer(&self.march.counters, 0, &[0u8; march::COUNTERS * 4]);
+        let q = self.queries.as_ref();
+        self.march.encode(
+            enc,
+            &t.march_bind,
+            width,
+            height,
+            q.map(|q| wgpu::ComputePassTimestampWrites {
+                query_set: &q.set,
+                beginning_of_pass_write_index: Some(0),
+                end_of_pass_write_index: Some(1),
+            }),
+        );
+        let present = &self.presents[pi];
+        let bind = present.bind(gpu, &self.march.uniforms, &t.cloud_view);
+        present.encode(
+            enc,
+            &bind,
+            target,
+            q.map(|q| wgpu::RenderPassTimestampWrites {
+                query_set: &q.set,
+                beginning_of_pass_write_index: Some(2),
+                end_of_pass_write_index: Some(3),
+            }),
+        );
+        if let Some(q) = q {
+            enc.resolve_query_set(&q.set, 0..4, &q.resolve, 0);
+        }
+        Ok(())
+    }
+
+    /// Read the work counters and pass times of the last submitted frame (waits for it).
+    pub fn read_stats(&self) -> Result<(Stats, Option<f64>, Option<f64>), RenderError> {
+        let gpu = &self.gpu;
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let rb_count = readback::Pending::buffer(gpu, &mut enc, &self.march.counters);
+        let rb_time = self
+            .queries
+            .as_ref()
+            .map(|q| readback::Pending::buffer(gpu, &mut enc, &q.resolve));
+        gpu.queue.submit([enc.finish()]);
+        let counts = rb_count.finish(gpu)?;
+        let c: Vec<u64> = bytemuck::cast_slice::<u8, u32>(&counts)
+            .iter()
+            .map(|&v| v as u64)
+            .collect();
+        let stats = Stats {
+            rays: c[0],
+            steps: c[1],
+            density_samples: c[2],
+            detail_samples: c[3],
+            light_samples: c[4],
+            outside_samples: c[5],
+            skipped_steps: c[6],
+            early_exits: c[7],
+        };
+        let (mut m, mut p) = (None, None);
+        if let (Some(rb), Some(q)) = (rb_time, self.queries.as_ref()) {
+            let raw = rb.finish(gpu)?;
+            let ts: &[u64] = bytemuck::cast_slice(&raw);
+            let ms = |a: u64, b: u64| (b > a).then(|| (b - a) as f64 * q.period_ns / 1e6);
+            m = ms(ts[0], ts[1]);
+            p = ms(ts[2], ts[3]);
+        }
+        Ok((stats, m, p))
     }
 
     /// The sky for a view: computed from the time and place, or the override.
@@ -343,64 +448,58 @@ impl Renderer {
         height: u32,
         settings: &Settings,
     ) -> Result<Output, RenderError> {
-        let max = MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d);
-        if width == 0 || height == 0 || width > max || height > max {
-            return Err(RenderError::BadSize(width, height, max));
-        }
-        settings.validate()?;
-        let sky = self.sky(view, settings)?;
-        let uniforms = frame::build(&frame::FrameInput {
-            view: *view,
+        const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+        let scope = self
+            .gpu
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        let start = Instant::now();
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        // The headless target lives with the cloud texture (same size).
+        let color = {
+            self.ensure_targets(width.max(1), height.max(1));
+            let dev = &self.gpu.device;
+            let t = self
+                .targets
+                .as_mut()
+                .ok_or_else(|| RenderError::Gpu("no targets".into()))?;
+            t.color
+                .get_or_insert_with(|| {
+                    dev.create_texture(&wgpu::TextureDescriptor {
+                        label: Some("frame"),
+                        size: wgpu::Extent3d {
+                            width: t.width,
+                            height: t.height,
+                            depth_or_array_layers: 1,
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format: FORMAT,
+                        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                            | wgpu::TextureUsages::COPY_SRC,
+                        view_formats: &[],
+                    })
+                })
+                .clone()
+        };
+        let color_view = color.create_view(&Default::default());
+        self.encode(
+            &mut enc,
+            view,
             width,
             height,
-            sky,
-            region: &self.meta.region,
-            weather: &self.weather,
             settings,
-            frame_index: settings.frame_index,
-        })?;
-        self.ensure_targets(width, height);
+            &color_view,
+            FORMAT,
+            width,
+        )?;
+        let gpu = &self.gpu;
         let Some(t) = self.targets.as_ref() else {
             return Err(RenderError::Gpu("no render targets".into()));
         };
-        let gpu = &self.gpu;
-        gpu.queue
-            .write_buffer(&self.march.uniforms, 0, bytemuck::bytes_of(&uniforms));
-        gpu.queue
-            .write_buffer(&self.march.counters, 0, &[0u8; march::COUNTERS * 4]);
-        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let start = Instant::now();
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        let q = self.queries.as_ref();
-        self.march.encode(
-            &mut enc,
-            &t.march_bind,
-            width,
-            height,
-            q.map(|q| wgpu::ComputePassTimestampWrites {
-                query_set: &q.set,
-                beginning_of_pass_write_index: Some(0),
-                end_of_pass_write_index: Some(1),
-            }),
-        );
-        let color_view = t.color.create_view(&Default::default());
-        self.present.encode(
-            &mut enc,
-            &t.present_bind,
-            &color_view,
-            q.map(|q| wgpu::RenderPassTimestampWrites {
-                query_set: &q.set,
-                beginning_of_pass_write_index: Some(2),
-                end_of_pass_write_index: Some(3),
-            }),
-        );
-        if let Some(q) = q {
-            enc.resolve_query_set(&q.set, 0..4, &q.resolve, 0);
-        }
-        let rb_color = readback::Pending::texture(gpu, &mut enc, &t.color, 4);
+        let rb_color = readback::Pending::texture(gpu, &mut enc, &color, 4);
         let rb_cloud = readback::Pending::texture(gpu, &mut enc, &t.cloud, 8);
-        let rb_count = readback::Pending::buffer(gpu, &mut enc, &self.march.counters);
-        let rb_time = q.map(|q| readback::Pending::buffer(gpu, &mut enc, &q.resolve));
         gpu.queue.submit([enc.finish()]);
         let pixels = rb_color.finish(gpu)?;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -408,43 +507,22 @@ impl Renderer {
             return Err(RenderError::Gpu(e.to_string()));
         }
         let cloud_raw = rb_cloud.finish(gpu)?;
-        let counts = rb_count.finish(gpu)?;
         let cloud: Vec<[f32; 4]> = bytemuck::cast_slice::<u8, half::f16>(&cloud_raw)
             .chunks_exact(4)
             .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
             .collect();
-        let c: Vec<u64> = bytemuck::cast_slice::<u8, u32>(&counts)
-            .iter()
-            .map(|&v| v as u64)
-            .collect();
-        let stats = Stats {
-            rays: c[0],
-            steps: c[1],
-            density_samples: c[2],
-            detail_samples: c[3],
-            light_samples: c[4],
-            outside_samples: c[5],
-            skipped_steps: c[6],
-            early_exits: c[7],
-        };
-        let mut timings = Timings {
-            wall_ms,
-            ..Default::default()
-        };
-        if let (Some(rb), Some(q)) = (rb_time, q) {
-            let raw = rb.finish(gpu)?;
-            let ts: &[u64] = bytemuck::cast_slice(&raw);
-            let ms = |a: u64, b: u64| (b > a).then(|| (b - a) as f64 * q.period_ns / 1e6);
-            timings.march_ms = ms(ts[0], ts[1]);
-            timings.present_ms = ms(ts[2], ts[3]);
-        }
+        let (stats, march_ms, present_ms) = self.read_stats()?;
         Ok(Output {
             width,
             height,
             pixels,
             cloud,
             stats,
-            timings,
+            timings: Timings {
+                march_ms,
+                present_ms,
+                wall_ms,
+            },
         })
     }
 }

@@ -13,6 +13,7 @@ impl PresentPass {
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> PresentPass {
         let dev = &gpu.device;
         let module = shader::module(dev, "present", shader::PRESENT);
+        let encode = [("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 })];
         let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("present"),
             layout: None,
@@ -28,7 +29,10 @@ impl PresentPass {
             fragment: Some(wgpu::FragmentState {
                 module: &module,
                 entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &encode,
+                    ..Default::default()
+                },
                 targets: &[Some(format.into())],
             }),
             multiview_mask: None,

@@ -43,7 +43,7 @@ impl Preset {
                 step_max_m: 3000.0,
                 max_steps: 200,
                 light_steps: 2,
-                light_step_m: 150.0,
+                light_reach_m: 800.0,
                 early_exit: 0.05,
                 detail: false,
                 shortcuts: on,
@@ -54,7 +54,7 @@ impl Preset {
                 step_max_m: 1500.0,
                 max_steps: 400,
                 light_steps: 3,
-                light_step_m: 100.0,
+                light_reach_m: 800.0,
                 early_exit: 0.02,
                 detail: true,
                 shortcuts: on,
@@ -65,7 +65,7 @@ impl Preset {
                 step_max_m: 800.0,
                 max_steps: 800,
                 light_steps: 4,
-                light_step_m: 70.0,
+                light_reach_m: 800.0,
                 early_exit: 0.01,
                 detail: true,
                 shortcuts: on,
@@ -76,7 +76,7 @@ impl Preset {
                 step_max_m: 10.0,
                 max_steps: 40_000,
                 light_steps: 6,
-                light_step_m: 50.0,
+                light_reach_m: 800.0,
                 early_exit: 0.0,
                 detail: true,
                 shortcuts: Shortcuts {
@@ -126,8 +126,9 @@ pub struct MarchParams {
     pub step_max_m: f32,
     pub max_steps: u32,
     pub light_steps: u32,
-    /// First light-march step (m); the last is 6× longer.
-    pub light_step_m: f32,
+    /// Total length of the light march toward the Sun (m), the same for every preset so they
+    /// differ in sample count only; the steps are equal but the last, 6× longer (coursework A.2).
+    pub light_reach_m: f32,
     /// Stop once transmittance falls below this.
     pub early_exit: f32,
     /// Detail (erosion) noise on.

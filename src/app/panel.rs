@@ -1,0 +1,234 @@
+//! The operator's control panel (seed 002 §3.6) and the HUD, in egui.
+
+use chrono::{DateTime, Duration, Utc};
+
+use crate::render::{Preset, Settings};
+
+/// What the panel edits, kept between frames.
+pub struct Controls {
+    pub preset: Preset,
+    /// Hours added to the forecast's valid time.
+    pub time_offset_h: f64,
+    pub layers_on: [bool; 3],
+    /// Critical humidity per layer; editable when RH is held in memory (a GRIB2 was loaded).
+    pub rh_cr: [f64; 3],
+    pub rh_cr_editable: bool,
+    pub coverage: f32,
+    pub density: f32,
+    pub extinction: f32,
+    pub hg_g: f32,
+    pub sun_override: bool,
+    pub sun_azimuth: f64,
+    pub sun_elevation: f64,
+    pub exposure: f64,
+    /// March resolution relative to the window.
+    pub render_scale: f32,
+    pub paused: bool,
+    pub teleport: String,
+    pub status: String,
+}
+
+/// What the user asked for this frame.
+#[derive(Default)]
+pub struct Actions {
+    pub teleport: Option<(f64, f64, f64)>,
+    pub rh_cr_changed: bool,
+    pub screenshot: bool,
+}
+
+/// Read-outs for the HUD.
+pub struct Hud {
+    pub lat: f64,
+    pub lon: f64,
+    pub alt_m: f64,
+    pub heading: f64,
+    pub speed: f64,
+    pub utc: DateTime<Utc>,
+    pub fps: f64,
+    pub gpu_ms: Option<f64>,
+    pub frame_ms: f64,
+    pub adapter: String,
+    pub march_size: (u32, u32),
+}
+
+impl Controls {
+    pub fn new(preset: Preset, rh_cr: [f64; 3], rh_cr_editable: bool, cpu: bool) -> Controls {
+        Controls {
+            preset,
+            time_offset_h: 0.0,
+            layers_on: [true; 3],
+            rh_cr,
+            rh_cr_editable,
+            coverage: 1.0,
+            density: 1.0,
+            extinction: 0.04,
+            hg_g: 0.6,
+            sun_override: false,
+            sun_azimuth: 135.0,
+            sun_elevation: 45.0,
+            exposure: 0.0,
+            render_scale: if cpu { 0.25 } else { 1.0 },
+            paused: false,
+            teleport: String::new(),
+            status: String::new(),
+        }
+    }
+
+    /// Settings for this frame from the panel and the forecast's valid time.
+    pub fn settings(&self, valid: DateTime<Utc>, frame: u32) -> Settings {
+        let mut s = Settings::new(
+            self.preset,
+            valid + Duration::seconds((self.time_offset_h * 3600.0) as i64),
+        );
+        s.layers_on = self.layers_on;
+        s.coverage_mul = self.coverage;
+        s.density_mul = self.density;
+        s.extinction = self.extinction;
+        s.hg_g = self.hg_g;
+        s.exposure_ev = self.exposure;
+        s.frame_index = frame;
+        if self.sun_override {
+            let (a, e) = (
+                self.sun_azimuth.to_radians(),
+                self.sun_elevation.to_radians(),
+            );
+            s.sun_override = Some(glam::DVec3::new(
+                e.cos() * a.sin(),
+                e.cos() * a.cos(),
+                e.sin(),
+            ));
+        }
+        s
+    }
+}
+
+/// Local mean solar time at a longitude, as HH:MM.
+pub fn solar_time(utc: DateTime<Utc>, lon: f64) -> String {
+    let t = utc + Duration::seconds((lon / 15.0 * 3600.0) as i64);
+    t.format("%H:%M").to_string()
+}
+
+pub fn hud(ui: &mut egui::Ui, h: &Hud) {
+    egui::Area::new(egui::Id::unique("hud"))
+        .fixed_pos(egui::pos2(10.0, 10.0))
+        .show(ui.ctx(), |ui| {
+            egui::Frame::popup(ui.style()).show(ui, |ui| {
+                ui.monospace(format!("LAT {:>9.4}°  LON {:>9.4}°", h.lat, h.lon));
+                ui.monospace(format!("ALT {:>7.0} m    HDG {:>5.1}°", h.alt_m, h.heading));
+                ui.monospace(format!(
+                    "SPD {:>5.0} m/s ({:.0} kt)",
+                    h.speed,
+                    h.speed * 1.943_844
+                ));
+                ui.monospace(format!(
+                    "UTC {}  solar {}",
+                    h.utc.format("%Y-%m-%d %H:%M"),
+                    solar_time(h.utc, h.lon)
+                ));
+                ui.monospace(format!(
+                    "{:.1} fps  frame {:.0} ms  GPU {}",
+                    h.fps,
+                    h.frame_ms,
+                    h.gpu_ms.map_or("n/a".into(), |g| format!("{g:.2} ms"))
+                ));
+                ui.small(format!(
+                    "{}  march {}×{}",
+                    h.adapter, h.march_size.0, h.march_size.1
+                ));
+            });
+        });
+}
+
+pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
+    let mut act = Actions::default();
+    egui::Panel::right("controls")
+        .default_size(260.0)
+        .show(ui, |ui| {
+            ui.heading("Stratus");
+            egui::ComboBox::from_label("quality")
+                .selected_text(c.preset.name())
+                .show_ui(ui, |ui| {
+                    for p in Preset::ALL {
+                        ui.selectable_value(&mut c.preset, p, p.name());
+                    }
+                });
+            ui.add(egui::Slider::new(&mut c.render_scale, 0.1..=1.0).text("render scale"));
+            ui.add(
+                egui::Slider::new(&mut c.time_offset_h, -24.0..=24.0).text("time (h from valid)"),
+            );
+            ui.separator();
+            ui.label("layers");
+            ui.horizontal(|ui| {
+                for (k, name) in ["low", "middle", "high"].iter().enumerate() {
+                    ui.checkbox(&mut c.layers_on[k], *name);
+                }
+            });
+            ui.add_enabled_ui(c.rh_cr_editable, |ui| {
+                for (k, name) in ["rh_cr low", "rh_cr middle", "rh_cr high"]
+                    .iter()
+                    .enumerate()
+                {
+                    if ui
+                        .add(egui::Slider::new(&mut c.rh_cr[k], 0.0..=0.99).text(*name))
+                        .changed()
+                    {
+                        act.rh_cr_changed = true;
+                    }
+                }
+            });
+            if !c.rh_cr_editable {
+                ui.small("rh_cr needs the RH field: open a GRIB2 file (drop one here)");
+            }
+            ui.separator();
+            ui.add(egui::Slider::new(&mut c.coverage, 0.0..=3.0).text("coverage ×"));
+            ui.add(egui::Slider::new(&mut c.density, 0.0..=5.0).text("density ×"));
+            ui.add(
+                egui::Slider::new(&mut c.extinction, 0.001..=0.2)
+                    .logarithmic(true)
+                    .text("absorption"),
+            );
+            ui.add(egui::Slider::new(&mut c.hg_g, -0.9..=0.9).text("HG g"));
+            ui.add(egui::Slider::new(&mut c.exposure, -6.0..=6.0).text("exposure EV"));
+            ui.checkbox(&mut c.sun_override, "sun override");
+            ui.add_enabled_ui(c.sun_override, |ui| {
+                ui.add(egui::Slider::new(&mut c.sun_azimuth, 0.0..=360.0).text("sun azimuth"));
+                ui.add(egui::Slider::new(&mut c.sun_elevation, -20.0..=90.0).text("sun elevation"));
+            });
+            ui.separator();
+            ui.horizontal(|ui| {
+                ui.label("teleport");
+                ui.text_edit_singleline(&mut c.teleport)
+                    .on_hover_text("lat, lon, alt_m");
+            });
+            if ui.button("go").clicked() {
+                let v: Vec<f64> = c
+                    .teleport
+                    .split(',')
+                    .filter_map(|p| p.trim().parse().ok())
+                    .collect();
+                if v.len() == 3
+                    && v.iter().all(|x| x.is_finite())
+                    && (-90.0..=90.0).contains(&v[0])
+                    && v[2] >= 0.0
+                {
+                    act.teleport = Some((v[0], v[1], v[2]));
+                } else {
+                    c.status = "teleport: give lat, lon, alt_m (alt ≥ 0)".into();
+                }
+            }
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut c.paused, "pause (Space)");
+                if ui.button("screenshot (F12)").clicked() {
+                    act.screenshot = true;
+                }
+            });
+            ui.separator();
+            ui.small(
+                "W/S throttle · Up/Down pitch · Left/Right bank · A/D yaw · right-drag look · Shift fast",
+            );
+            if !c.status.is_empty() {
+                ui.label(&c.status);
+            }
+        });
+    act
+}

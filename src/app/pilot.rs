@@ -1,0 +1,132 @@
+//! The flight model behind the window: throttle, pitch, bank and yaw with coordinated turns,
+//! moving over the sphere. Deliberately simple (no stalls, no wind): it exists to fly a camera.
+
+use std::collections::HashSet;
+
+use winit::keyboard::KeyCode;
+
+use crate::render::camera::EARTH_R;
+use crate::render::Camera;
+
+const G: f64 = 9.81;
+
+#[derive(Clone, Debug)]
+pub struct Pilot {
+    pub lat: f64,
+    pub lon: f64,
+    pub alt_m: f64,
+    /// Degrees clockwise from north.
+    pub heading: f64,
+    /// Flight-path angle, degrees up.
+    pub pitch: f64,
+    /// Bank, degrees, right wing down positive.
+    pub roll: f64,
+    /// True airspeed, m/s.
+    pub speed: f64,
+    /// Mouse-look offsets from the nose, degrees.
+    pub look_yaw: f64,
+    pub look_pitch: f64,
+    pub fov: f64,
+}
+
+impl Pilot {
+    pub fn at(lat: f64, lon: f64, alt_m: f64, heading: f64, pitch: f64) -> Pilot {
+        Pilot {
+            lat,
+            lon,
+            alt_m,
+            heading,
+            pitch,
+            roll: 0.0,
+            speed: 120.0,
+            look_yaw: 0.0,
+            look_pitch: 0.0,
+            fov: 60.0,
+        }
+    }
+
+    pub fn camera(&self) -> Camera {
+        let mut c = Camera::new(
+            self.lat,
+            self.lon,
+            self.alt_m,
+            self.heading + self.look_yaw,
+            (self.pitch + self.look_pitch).clamp(-90.0, 90.0),
+        );
+        c.fov_deg = self.fov;
+        c.roll_deg = self.roll;
+        c
+    }
+
+    /// Advance by `dt` seconds with the keys held.
+    pub fn step(&mut self, keys: &HashSet<KeyCode>, dt: f64) {
+        let dt = dt.clamp(0.0, 0.5);
+        let held = |k: KeyCode| keys.contains(&k);
+        let axis = |pos: KeyCode, neg: KeyCode| held(pos) as i32 as f64 - held(neg) as i32 as f64;
+        // Throttle: W/S change airspeed; Shift makes it brisk.
+        let accel = if held(KeyCode::ShiftLeft) {
+            200.0
+        } else {
+            30.0
+        };
+        self.speed =
+            (self.speed + axis(KeyCode::KeyW, KeyCode::KeyS) * accel * dt).clamp(0.0, 2000.0);
+        // Elevator: Down arrow pulls the nose up, as on a stick.
+        self.pitch = (self.pitch + axis(KeyCode::ArrowDown, KeyCode::ArrowUp) * 25.0 * dt)
+            .clamp(-89.0, 89.0);
+        // Ailerons, and the bank slowly levels when released.
+        let roll_in = axis(KeyCode::ArrowRight, KeyCode::ArrowLeft);
+        if roll_in != 0.0 {
+            self.roll = (self.roll + roll_in * 45.0 * dt).clamp(-80.0, 80.0);
+        } else {
+            self.roll -= self.roll * (0.8 * dt).min(1.0);
+        }
+        // Rudder, plus the coordinated turn a bank gives: ψ' = g·tan φ / v.
+        let turn = if self.speed > 1.0 {
+            (G * self.roll.to_radians().tan() / self.speed).to_degrees()
+        } else {
+            0.0
+        };
+        self.heading = (self.heading + (axis(KeyCode::KeyD, KeyCode::KeyA) * 20.0 + turn) * dt)
+            .rem_euclid(360.0);
+        // Move along the flight path over the sphere.
+        let d = self.speed * dt;
+        let (h, p) = (self.heading.to_radians(), self.pitch.to_radians());
+        let r = EARTH_R + self.alt_m;
+        self.lat += (d * p.cos() * h.cos() / r).to_degrees();
+        let coslat = self.lat.to_radians().cos().max(1e-6);
+        self.lon += (d * p.cos() * h.sin() / (r * coslat)).to_degrees();
+        if self.lat.abs() > 90.0 {
+            // Over a pole: come down the other side.
+            self.lat = self.lat.signum() * 180.0 - self.lat;
+            self.lon += 180.0;
+            self.heading = (self.heading + 180.0).rem_euclid(360.0);
+        }
+        self.lon = (self.lon + 180.0).rem_euclid(360.0) - 180.0;
+        self.alt_m = (self.alt_m + d * p.sin()).clamp(0.0, 1.0e6);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flies_north_and_turns_when_banked() {
+        let mut p = Pilot::at(0.0, 0.0, 1000.0, 0.0, 0.0);
+        p.speed = 111.195;
+        let none = HashSet::new();
+        for _ in 0..100 {
+            p.step(&none, 0.1);
+        }
+        // 1111.95 m north ≈ 0.01°.
+        assert!((p.lat - 0.01).abs() < 1e-4, "{}", p.lat);
+        let mut keys = HashSet::new();
+        keys.insert(KeyCode::ArrowRight);
+        p.step(&keys, 0.5);
+        keys.clear();
+        let h0 = p.heading;
+        p.step(&keys, 0.5);
+        assert!(p.heading > h0, "a right bank turns right");
+    }
+}

@@ -1,0 +1,319 @@
+//! Speed against accuracy, measured (issue: presets and shortcuts). Fixed scenes over a map are
+//! rendered at every preset and with each shortcut switched off alone; each is timed and compared
+//! with the `reference` preset: alpha MAE, linear-RGB RMSE, and the Dice score of the cloud masks.
+
+use chrono::{DateTime, Utc};
+use serde::Serialize;
+use stratus_ingest::cloudmap::CloudMap;
+
+use crate::render::{Camera, Output, Preset, RenderError, Renderer, Settings, View};
+use crate::score;
+
+/// A fixed view with its time of day.
+#[derive(Clone, Copy, Debug)]
+pub struct Scene {
+    pub name: &'static str,
+    pub view: View,
+    pub time: Option<&'static str>,
+}
+
+/// The bench scenes over the embedded sample's region (30–60°N, 40°W–0°).
+pub fn scenes() -> Vec<Scene> {
+    vec![
+        Scene {
+            name: "above-noon",
+            view: View::Perspective(Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0)),
+            time: None,
+        },
+        Scene {
+            name: "inside-layer",
+            view: View::Perspective(Camera::new(47.0, -17.0, 4_500.0, 60.0, 0.0)),
+            time: None,
+        },
+        Scene {
+            name: "horizon-dusk",
+            view: View::Perspective(Camera::new(36.0, -28.6, 50.0, 45.0, 10.0)),
+            time: Some("2024-06-01T20:45:00Z"),
+        },
+        Scene {
+            name: "top-down",
+            view: View::TopDown,
+            time: None,
+        },
+    ]
+}
+
+/// One measured configuration.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub config: String,
+    pub width: u32,
+    pub height: u32,
+    /// Median frame time: GPU march + present where timestamps are meaningful, else wall.
+    pub frame_ms: f64,
+    pub timed_by: &'static str,
+    pub steps_per_px: f64,
+    pub density_per_px: f64,
+    pub light_per_px: f64,
+    pub speedup_vs_reference: Option<f64>,
+    pub alpha_mae: Option<f64>,
+    pub rgb_rmse: Option<f64>,
+    pub mask_dice: Option<f64>,
+}
+
+fn srgb_to_linear(c: u8) -> f64 {
+    let c = c as f64 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// (alpha MAE, linear-RGB RMSE, DSC of alpha > 0.5 masks) of `a` against the reference `r`.
+pub fn errors(a: &Output, r: &Output) -> (f64, f64, f64) {
+    let n = a.cloud.len().max(1) as f64;
+    let mae = a
+        .cloud
+        .iter()
+        .zip(&r.cloud)
+        .map(|(x, y)| (x[3] - y[3]).abs() as f64)
+        .sum::<f64>()
+        / n;
+    let mut se = 0.0;
+    for (p, q) in a.pixels.chunks_exact(4).zip(r.pixels.chunks_exact(4)) {
+        for c in 0..3 {
+            se += (srgb_to_linear(p[c]) - srgb_to_linear(q[c])).powi(2);
+        }
+    }
+    let rmse = (se / (3.0 * n)).sqrt();
+    let dice = score::compare(
+        &score::mask(&a.alpha(), score::RENDER_THRESHOLD),
+        &score::mask(&r.alpha(), score::RENDER_THRESHOLD),
+    )
+    .dice;
+    (mae, rmse, dice)
+}
+
+/// The configurations measured: presets, then `balanced` with each shortcut off alone.
+pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
+    let mut v: Vec<(String, crate::render::MarchParams)> = Preset::ALL
+        .iter()
+        .map(|p| (p.name().to_string(), p.params()))
+        .collect();
+    let b = Preset::Balanced.params();
+    let mut off = |name: &str, f: &dyn Fn(&mut crate::render::Shortcuts)| {
+        let mut p = b;
+        f(&mut p.shortcuts);
+        v.push((format!("balanced − {name}"), p));
+    };
+    off("early exit", &|s| s.early_exit = false);
+    off("variable step", &|s| s.variable_step = false);
+    off("region culling", &|s| s.region_cull = false);
+    off("empty-space skip", &|s| s.empty_skip = false);
+    off("light LOD", &|s| s.light_lod = false);
+    v
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Time one configuration: a warm-up frame, then the median of `repeats`.
+fn timed(
+    r: &mut Renderer,
+    view: &View,
+    w: u32,
+    h: u32,
+    s: &Settings,
+    repeats: usize,
+) -> Result<(Output, f64, &'static str), RenderError> {
+    let mut out = r.render(view, w, h, s)?;
+    let gpu_ok = !r.gpu.is_cpu() && r.gpu.timestamps;
+    let mut times = Vec::new();
+    for _ in 0..repeats {
+        out = r.render(view, w, h, s)?;
+        let t = out.timings;
+        times.push(match (gpu_ok, t.march_ms, t.present_ms) {
+            (true, Some(m), Some(p)) => m + p,
+            _ => t.wall_ms,
+        });
+    }
+    Ok((out, median(times), if gpu_ok { "gpu" } else { "wall" }))
+}
+
+/// Run the bench: timings at `size`, errors against `reference` at `error_size`.
+pub fn run(
+    r: &mut Renderer,
+    map: &CloudMap,
+    time: DateTime<Utc>,
+    size: (u32, u32),
+    error_size: (u32, u32),
+    repeats: usize,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<Row>, RenderError> {
+    r.set_map(map);
+    let mut rows = Vec::new();
+    for sc in scenes() {
+        let mut base = Settings::new(Preset::Reference, time);
+        if let Some(t) = sc.time {
+            base.time = DateTime::parse_from_rfc3339(t)
+                .map(|d| d.with_timezone(&Utc))
+                .unwrap_or(time);
+        }
+        progress(&format!("{} reference", sc.name));
+        let reference = r.render(&sc.view, error_size.0, error_size.1, &base)?;
+        let mut ref_ms = None;
+        for (name, params) in configs() {
+            progress(&format!("{} {name}", sc.name));
+            let mut s = base.clone();
+            s.march = params;
+            let (out, ms, by) = if name == "reference" {
+                // The reference is timed at the error size only (it is slow by design).
+                timed(r, &sc.view, error_size.0, error_size.1, &s, 1)?
+            } else {
+                timed(r, &sc.view, size.0, size.1, &s, repeats)?
+            };
+            let small = if (out.width, out.height) == error_size {
+                out
+            } else {
+                r.render(&sc.view, error_size.0, error_size.1, &s)?
+            };
+            let (mae, rmse, dice) = errors(&small, &reference);
+            if name == "reference" {
+                ref_ms = Some(ms * (size.0 * size.1) as f64 / (error_size.0 * error_size.1) as f64);
+            }
+            let px = small.stats.rays.max(1) as f64;
+            rows.push(Row {
+                scene: sc.name.into(),
+                config: name.clone(),
+                width: if name == "reference" {
+                    error_size.0
+                } else {
+                    size.0
+                },
+                height: if name == "reference" {
+                    error_size.1
+                } else {
+                    size.1
+                },
+                frame_ms: ms,
+                timed_by: by,
+                steps_per_px: small.stats.steps as f64 / px,
+                density_per_px: small.stats.density_samples as f64 / px,
+                light_per_px: small.stats.light_samples as f64 / px,
+                speedup_vs_reference: None,
+                alpha_mae: Some(mae),
+                rgb_rmse: Some(rmse),
+                mask_dice: Some(dice),
+            });
+        }
+        if let Some(rm) = ref_ms {
+            for row in rows
+                .iter_mut()
+                .filter(|x| x.scene == sc.name && x.config != "reference")
+            {
+                row.speedup_vs_reference = Some(rm / row.frame_ms);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// A markdown table of the rows.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| scene | config | size | frame ms | timed by | steps/px | density/px | light/px | × reference | alpha MAE | RGB RMSE | mask DSC |\n|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let f = |v: Option<f64>, d: usize| v.map_or("–".to_string(), |x| format!("{x:.d$}"));
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {}×{} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} |\n",
+            r.scene,
+            r.config,
+            r.width,
+            r.height,
+            r.frame_ms,
+            r.timed_by,
+            r.steps_per_px,
+            r.density_per_px,
+            r.light_per_px,
+            f(r.speedup_vs_reference, 1),
+            f(r.alpha_mae, 4),
+            f(r.rgb_rmse, 4),
+            f(r.mask_dice, 4)
+        );
+    }
+    s
+}
+
+/// A bar chart (PNG): per scene, one bar per configuration, height = log10 speed-up over
+/// reference; a dot on each bar marks alpha MAE × 100 on the same axis (legend in the docs).
+pub fn chart(rows: &[Row]) -> image::RgbImage {
+    let palette = [
+        [66, 133, 244],
+        [52, 168, 83],
+        [251, 188, 5],
+        [234, 67, 53],
+        [140, 140, 140],
+        [171, 71, 188],
+        [0, 172, 193],
+        [255, 112, 67],
+        [124, 179, 66],
+    ];
+    let scenes: Vec<String> = {
+        let mut v: Vec<String> = rows.iter().map(|r| r.scene.clone()).collect();
+        v.dedup();
+        v
+    };
+    let configs: Vec<String> = rows
+        .iter()
+        .filter(|r| r.config != "reference")
+        .map(|r| r.config.clone())
+        .fold(Vec::new(), |mut v, c| {
+            if !v.contains(&c) {
+                v.push(c);
+            }
+            v
+        });
+    let (w, h) = (900u32, 360u32);
+    let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    let (top, bottom) = (20.0, h as f64 - 20.0);
+    let max_log = 2.5f64; // ×316 at the top
+    let y_of = |v: f64| bottom - (v / max_log).clamp(0.0, 1.0) * (bottom - top);
+    // Grid lines at ×1, ×10, ×100.
+    for k in 0..=2 {
+        let y = y_of(k as f64) as u32;
+        for x in 0..w {
+            img.put_pixel(x, y.min(h - 1), image::Rgb([200, 200, 200]));
+        }
+    }
+    let group = w as f64 / scenes.len().max(1) as f64;
+    let bar = group / (configs.len() as f64 + 1.0);
+    for (si, sc) in scenes.iter().enumerate() {
+        for (ci, cfg) in configs.iter().enumerate() {
+            let Some(r) = rows.iter().find(|r| &r.scene == sc && &r.config == cfg) else {
+                continue;
+            };
+            let x0 = (si as f64 * group + (ci as f64 + 0.5) * bar) as u32;
+            let x1 = (x0 as f64 + bar * 0.85) as u32;
+            let y = y_of(r.speedup_vs_reference.unwrap_or(1.0).max(1e-3).log10()) as u32;
+            for x in x0..x1.min(w) {
+                for yy in y..bottom as u32 {
+                    img.put_pixel(x, yy, image::Rgb(palette[ci % palette.len()]));
+                }
+            }
+            if let Some(m) = r.alpha_mae {
+                let ym = y_of(m * 100.0) as u32;
+                for x in x0..x1.min(w) {
+                    for yy in ym.saturating_sub(2)..(ym + 2).min(h) {
+                        img.put_pixel(x, yy, image::Rgb([0, 0, 0]));
+                    }
+                }
+            }
+        }
+    }
+    img
+}

@@ -1,0 +1,91 @@
+//! `stratus bench`: every preset and every shortcut-off variant on fixed scenes, against the
+//! reference; a markdown table and a chart for docs/performance.md.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::region::parse_size;
+
+use super::ingest::{progress_bar, IngestOpts};
+use super::render::parse_time;
+use crate::bench;
+use crate::render::{gpu, Gpu, Renderer};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Size the presets are timed at.
+    #[arg(long, default_value = "480x270")]
+    pub size: String,
+    /// Size every configuration is compared with the reference at (the reference is slow).
+    #[arg(long, default_value = "240x135")]
+    pub error_size: String,
+    /// Timed repeats per configuration (median reported).
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the chart here (PNG).
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+    /// Adapter to use (any part of its name).
+    #[arg(long)]
+    pub adapter: Option<String>,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let size = parse_size(&a.size)?;
+    let error_size = parse_size(&a.error_size)?;
+    if a.repeats == 0 || a.repeats > 100 {
+        anyhow::bail!("--repeats {} must be in 1..=100", a.repeats);
+    }
+    let sample = super::demo::sample_path();
+    let opts = IngestOpts {
+        region: Some("30,60,-40,0".into()),
+        size: "800x600".into(),
+        level: None,
+        top_hpa: stratus_ingest::forecast::DEFAULT_TOP_HPA,
+        rh_cr: None,
+        rh_cr_low: 0.80,
+        rh_cr_mid: 0.65,
+        rh_cr_high: 0.80,
+        interp: stratus_ingest::spline::Interp::Spline,
+    };
+    let map: CloudMap = opts.plan(&sample)?.build();
+    let time = parse_time(&map.meta.source.valid_time)?;
+    let g = Gpu::new(a.adapter.as_deref())?;
+    eprintln!("stratus: adapter {}", gpu::describe(&g.info));
+    let mut r = Renderer::new(g, &map);
+    let total = (bench::scenes().len() * (bench::configs().len() + 1)) as u64;
+    let pb = progress_bar(total, "bench");
+    let rows = bench::run(&mut r, &map, time, size, error_size, a.repeats, &|what| {
+        pb.set_message(what.to_string());
+        pb.inc(1);
+    })?;
+    pb.finish_and_clear();
+    if let Some(c) = &a.chart {
+        let img = bench::chart(&rows);
+        stratus_ingest::cloudmap::write_atomic(c, |w| {
+            image::codecs::png::PngEncoder::new(w)
+                .write_image(
+                    img.as_raw(),
+                    img.width(),
+                    img.height(),
+                    image::ExtendedColorType::Rgb8,
+                )
+                .map_err(|e| e.to_string())
+        })
+        .with_context(|| c.display().to_string())?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        println!("adapter: {}\n", gpu::describe(&r.gpu.info));
+        print!("{}", bench::table(&rows));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+use image::ImageEncoder;

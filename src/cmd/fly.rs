@@ -1,0 +1,78 @@
+//! `stratus fly`: open the window over a CloudMap or a GRIB2 file.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::region::parse_size;
+
+use super::ingest::{progress_bar, IngestOpts};
+use crate::app::{fly, FlyOptions};
+use crate::render::Preset;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A CloudMap sidecar (MAP.json) or a GRIB2 forecast (with --region and the ingest options).
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub ingest: IngestOpts,
+    /// Window size WxH.
+    #[arg(long = "window", default_value = "1280x720")]
+    pub window: String,
+    #[arg(long, value_enum, default_value = "fast")]
+    pub preset: Preset,
+    /// Adapter to use (any part of its name).
+    #[arg(long)]
+    pub adapter: Option<String>,
+    /// Render this many frames, then exit (with --screenshot: save the last one).
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Where --frames saves its last frame (PNG).
+    #[arg(long, requires = "frames")]
+    pub screenshot: Option<PathBuf>,
+}
+
+fn is_json(p: &std::path::Path) -> bool {
+    p.extension().and_then(|e| e.to_str()) == Some("json")
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if a.frames == Some(0) {
+        anyhow::bail!("--frames must be at least 1");
+    }
+    let size = parse_size(&a.window)?;
+    let (map, plan) = if is_json(&a.input) {
+        (CloudMap::load(&a.input)?, None)
+    } else {
+        let plan = a.ingest.plan(&a.input)?;
+        let pb = progress_bar(1, "ingest");
+        let map = plan.build();
+        pb.finish_and_clear();
+        (map, Some(plan))
+    };
+    // A dropped file is ingested over the current map's region and size.
+    let region = map.meta.region;
+    let (mw, mh) = (map.meta.width, map.meta.height);
+    let base = a.ingest.clone();
+    let ingest_dropped = Box::new(move |p: &std::path::Path| {
+        let mut o = base.clone();
+        o.region = Some(format!(
+            "{},{},{},{}",
+            region.south, region.north, region.west, region.east
+        ));
+        o.size = format!("{mw}x{mh}");
+        let plan = o.plan(p)?;
+        Ok((plan.build(), plan))
+    });
+    fly(FlyOptions {
+        map,
+        plan,
+        size,
+        preset: a.preset,
+        adapter: a.adapter,
+        frames: a.frames,
+        screenshot: a.screenshot,
+        ingest_dropped,
+    })?;
+    Ok(ExitCode::SUCCESS)
+}

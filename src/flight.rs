@@ -1,0 +1,164 @@
+//! Scripted fly-throughs: a keyframed path (serde JSON) sampled into cameras and times.
+//!
+//! ```json
+//! { "keys": [ { "t": 0, "lat": 45.5, "lon": -22, "alt_m": 12000, "heading": 45, "pitch": -12,
+//!               "time": "2024-06-01T12:00:00Z" },
+//!             { "t": 5, "lat": 46.0, "lon": -21, "alt_m": 9000, "heading": 60, "pitch": -5 } ] }
+//! ```
+//! `t` is seconds along the path; positions and angles are interpolated linearly (heading the
+//! short way round), the time of day likewise where keys give it.
+
+use chrono::{DateTime, Utc};
+use serde::{Deserialize, Serialize};
+
+use crate::render::Camera;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Key {
+    pub t: f64,
+    pub lat: f64,
+    pub lon: f64,
+    pub alt_m: f64,
+    #[serde(default)]
+    pub heading: f64,
+    #[serde(default)]
+    pub pitch: f64,
+    #[serde(default)]
+    pub time: Option<DateTime<Utc>>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FlightPath {
+    pub keys: Vec<Key>,
+    #[serde(default = "default_fov")]
+    pub fov_deg: f64,
+}
+
+fn default_fov() -> f64 {
+    60.0
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PathError {
+    #[error("the path needs at least 2 keys, it has {0}")]
+    TooFewKeys(usize),
+    #[error("key {0}: t must increase and be finite")]
+    BadTime(usize),
+    #[error("key {0}: {1}")]
+    BadKey(usize, String),
+}
+
+fn lerp(a: f64, b: f64, f: f64) -> f64 {
+    a + (b - a) * f
+}
+
+/// Angle interpolation the short way round (degrees).
+fn lerp_deg(a: f64, b: f64, f: f64) -> f64 {
+    let d = (b - a + 540.0).rem_euclid(360.0) - 180.0;
+    a + d * f
+}
+
+impl FlightPath {
+    pub fn validate(&self) -> Result<(), PathError> {
+        if self.keys.len() < 2 {
+            return Err(PathError::TooFewKeys(self.keys.len()));
+        }
+        for (i, k) in self.keys.iter().enumerate() {
+            if !k.t.is_finite() || (i > 0 && k.t <= self.keys[i - 1].t) {
+                return Err(PathError::BadTime(i));
+            }
+            let mut c = Camera::new(k.lat, k.lon, k.alt_m, k.heading, k.pitch);
+            c.fov_deg = self.fov_deg;
+            c.validate()
+                .map_err(|e| PathError::BadKey(i, e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    /// Seconds from the first key to the last.
+    pub fn duration(&self) -> f64 {
+        match (self.keys.first(), self.keys.last()) {
+            (Some(a), Some(b)) => b.t - a.t,
+            _ => 0.0,
+        }
+    }
+
+    /// Camera and (if keyed) time at `t` seconds, clamped to the path.
+    pub fn at(&self, t: f64) -> (Camera, Option<DateTime<Utc>>) {
+        let k = &self.keys;
+        let t = t.clamp(k[0].t, k[k.len() - 1].t);
+        let i = k
+            .windows(2)
+            .position(|w| t <= w[1].t)
+            .unwrap_or(k.len() - 2);
+        let (a, b) = (&k[i], &k[i + 1]);
+        let f = (t - a.t) / (b.t - a.t);
+        let mut cam = Camera::new(
+            lerp(a.lat, b.lat, f),
+            lerp_deg(a.lon, b.lon, f),
+            lerp(a.alt_m, b.alt_m, f),
+            lerp_deg(a.heading, b.heading, f),
+            lerp(a.pitch, b.pitch, f),
+        );
+        cam.fov_deg = self.fov_deg;
+        let time = match (a.time, b.time) {
+            (Some(ta), Some(tb)) => {
+                let ms = (tb - ta).num_milliseconds() as f64 * f;
+                Some(ta + chrono::Duration::milliseconds(ms as i64))
+            }
+            (Some(ta), None) => Some(ta),
+            (None, Some(tb)) => Some(tb),
+            (None, None) => None,
+        };
+        (cam, time)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn key(t: f64, lon: f64, heading: f64) -> Key {
+        Key {
+            t,
+            lat: 10.0,
+            lon,
+            alt_m: 1000.0,
+            heading,
+            pitch: 0.0,
+            time: None,
+        }
+    }
+
+    #[test]
+    fn interpolates_across_the_date_line_and_north() {
+        let p = FlightPath {
+            keys: vec![key(0.0, 179.0, 350.0), key(2.0, -179.0, 10.0)],
+            fov_deg: 60.0,
+        };
+        p.validate().unwrap();
+        let (c, _) = p.at(1.0);
+        assert!(
+            (c.lon_deg.rem_euclid(360.0) - 180.0).abs() < 1e-9,
+            "{}",
+            c.lon_deg
+        );
+        // Heading 350 → 10 passes through north, not south.
+        let h = crate::render::camera::heading_pitch_enu(0.0, 0.0);
+        assert!((c.forward_enu - h).length() < 1e-9);
+    }
+
+    #[test]
+    fn bad_paths_are_refused() {
+        let one = FlightPath {
+            keys: vec![key(0.0, 0.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(one.validate().is_err());
+        let back = FlightPath {
+            keys: vec![key(1.0, 0.0, 0.0), key(1.0, 1.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(back.validate().is_err());
+    }
+}

@@ -1,0 +1,211 @@
+//! The real `stratus fly` window under Xvfb (X11 + Mesa): a few frames, then a screenshot that
+//! must show clouds and the control panel. An empty map from the same start is the control: the
+//! clouds are what differs. Also: no display at all is a clear error, not a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::meta::LayerKind;
+use stratus_ingest::region::Region;
+
+/// A 640×360 Xvfb server on a free display, killed on drop.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start() -> Xvfb {
+        for n in 90..140 {
+            let lock = format!("/tmp/.X{n}-lock");
+            if Path::new(&lock).exists() {
+                continue;
+            }
+            let mut child = Command::new("Xvfb")
+                .args([
+                    &format!(":{n}"),
+                    "-screen",
+                    "0",
+                    "1024x768x24",
+                    "-nolisten",
+                    "tcp",
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("Xvfb is needed for the window test (Debian: apt-get install xvfb)");
+            let sock = format!("/tmp/.X11-unix/X{n}");
+            let t0 = Instant::now();
+            while t0.elapsed() < Duration::from_secs(10) {
+                if Path::new(&sock).exists() {
+                    return Xvfb {
+                        child,
+                        display: format!(":{n}"),
+                    };
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("Xvfb :{n} did not start within 10 s");
+        }
+        panic!("no free X display number in 90..140");
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A map over the North Atlantic whose cover is `cover` everywhere, saved in `dir`.
+fn map(dir: &Path, name: &str, cover: f64) -> PathBuf {
+    let region = Region {
+        south: 40.0,
+        north: 50.0,
+        west: -30.0,
+        east: -15.0,
+    };
+    let m = CloudMap::from_fn(
+        region,
+        96,
+        64,
+        &[(LayerKind::Low, 1000.0, 3000.0)],
+        "2024-06-21T14:00:00Z",
+        |_, _| [cover, 0.0, 0.0],
+    );
+    let png = dir.join(format!("{name}.png"));
+    m.save(&png).expect("save map")
+}
+
+fn fly(display: Option<&str>, map: &Path, shot: &Path) -> std::process::Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_stratus"));
+    c.args([
+        "fly",
+        map.to_str().unwrap(),
+        "--window",
+        "640x360",
+        "--frames",
+        "3",
+        "--screenshot",
+        shot.to_str().unwrap(),
+    ])
+    .env("RUST_LOG", "error")
+    .env_remove("WAYLAND_DISPLAY");
+    match display {
+        Some(d) => c.env("DISPLAY", d),
+        None => c.env_remove("DISPLAY"),
+    };
+    c.output().expect("run stratus fly")
+}
+
+struct Shot {
+    w: usize,
+    h: usize,
+    rgb: Vec<[f32; 3]>,
+}
+
+impl Shot {
+    fn load(p: &Path) -> Shot {
+        let img = image::open(p).expect("screenshot is a PNG").to_rgb8();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let rgb = img
+            .pixels()
+            .map(|p| [p[0], p[1], p[2]].map(|c| f32::from(c) / 255.0))
+            .collect();
+        Shot { w, h, rgb }
+    }
+
+    fn at(&self, x: usize, y: usize) -> [f32; 3] {
+        self.rgb[y * self.w + x]
+    }
+
+    /// Pixels in columns x0..x1, rows y0..y1.
+    fn area(&self, x0: usize, x1: usize, y0: usize, y1: usize) -> Vec<[f32; 3]> {
+        (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .map(|(x, y)| self.at(x, y))
+            .collect()
+    }
+}
+
+fn luma(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+#[test]
+fn window_shows_clouds_and_the_panel() {
+    let x = Xvfb::start();
+    let dir = tempfile::tempdir().unwrap();
+    let cloudy = map(dir.path(), "cloudy", 1.0);
+    let clear = map(dir.path(), "clear", 0.0);
+    let (s1, s0) = (
+        dir.path().join("cloudy.png"),
+        dir.path().join("clear-shot.png"),
+    );
+    for (m, s) in [(&cloudy, &s1), (&clear, &s0)] {
+        let o = fly(Some(&x.display), m, s);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "stratus fly failed: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    let (a, b) = (Shot::load(&s1), Shot::load(&s0));
+    assert_eq!((a.w, a.h), (640, 360), "screenshot is the window's size");
+
+    // The panel: egui's dark grey on the right edge, with lighter text and widgets on it.
+    let panel = a.area(a.w - 60, a.w - 4, 10, a.h - 10);
+    let dark = panel.iter().filter(|c| luma(**c) < 0.15).count();
+    let light = panel.iter().filter(|c| luma(**c) > 0.5).count();
+    assert!(
+        dark * 10 > panel.len() * 6,
+        "panel background: {dark} of {} dark",
+        panel.len()
+    );
+    assert!(
+        light * 200 > panel.len(),
+        "panel text: {light} of {} light",
+        panel.len()
+    );
+
+    // The view: the lower half of the scene (below the horizon, the deck) left of the panel.
+    let (x0, x1, y0, y1) = (a.w / 10, a.w / 2, a.h * 6 / 10, a.h * 9 / 10);
+    let deck = a.area(x0, x1, y0, y1);
+    let ground = b.area(x0, x1, y0, y1);
+    let mean = |v: &[[f32; 3]]| v.iter().map(|c| luma(*c)).sum::<f32>() / v.len() as f32;
+    let (ld, lg) = (mean(&deck), mean(&ground));
+    eprintln!(
+        "deck luma {ld:.3}, clear ground luma {lg:.3}; panel {dark} dark / {light} light of {}",
+        panel.len()
+    );
+    if let Ok(keep) = std::env::var("STRATUS_KEEP_SHOTS") {
+        let _ = std::fs::copy(&s1, Path::new(&keep).join("fly-cloudy.png"));
+        let _ = std::fs::copy(&s0, Path::new(&keep).join("fly-clear.png"));
+    }
+    assert!(
+        ld > lg + 0.15,
+        "the cloud deck (luma {ld:.3}) must be far brighter than the clear view's ground (luma {lg:.3})"
+    );
+    // Not a blank frame: the view (sky over deck) has structure.
+    let view = a.area(0, a.w * 7 / 10, 0, a.h);
+    let m = mean(&view);
+    let sd = (view.iter().map(|c| (luma(*c) - m).powi(2)).sum::<f32>() / view.len() as f32).sqrt();
+    assert!(sd > 0.03, "view luma spread {sd:.4}: a blank frame");
+    assert!(view.iter().flatten().all(|c| c.is_finite()));
+}
+
+#[test]
+fn no_display_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = map(dir.path(), "m", 0.5);
+    let shot = dir.path().join("s.png");
+    let o = fly(None, &m, &shot);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("stratus render"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!shot.exists());
+}
