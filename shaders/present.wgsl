@@ -84,7 +84,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let dims = vec2<i32>(textureDimensions(cloud));
     let ip = vec2<i32>(px);
     var c = textureLoad(cloud, clamp(ip, vec2<i32>(0), dims - 1), 0);
-    if (has_flag(f, FLAG_JITTER)) {
+    // Not for the score's top-down frames: a mask view, where a blur would only move edges.
+    if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
         // The march's interleaved-gradient jitter spreads its values evenly over every 3×3
         // block of pixels (Jimenez 2014), so a 3×3 mean resolves it; a still frame has no
         // temporal filter to do that, and thin layers otherwise show the jitter's lattice.

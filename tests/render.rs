@@ -248,3 +248,41 @@ fn night_is_dark_but_clouds_are_not_holes() {
     let noon = render(&map, View::Perspective(cam), 96, 64, &settings());
     assert!(mean(&luma(&noon)) > mean(&l), "night is darker than day");
 }
+
+/// Work counters: no density sample outside the region (nor where the map is empty), and fewer
+/// light samples once the view ray is mostly opaque. Each shortcut switched off shows the work
+/// it saves, so the counters are seen to count.
+#[test]
+fn only_what_the_scene_needs_is_sampled() {
+    // Camera west of an empty-map region, level inside the layer, looking east across it.
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 0.0);
+    let view = View::Perspective(Camera::new(30.0, 95.0, 4000.0, 90.0, 0.0));
+    let on = render(&map, view, 48, 32, &settings());
+    assert_eq!(on.stats.density_samples, 0, "culled: {:?}", on.stats);
+    let mut s = settings();
+    s.march.shortcuts.region_cull = false;
+    s.march.shortcuts.empty_skip = false;
+    let off = render(&map, view, 48, 32, &s);
+    assert!(off.stats.outside_samples > 0, "unculled: {:?}", off.stats);
+    assert!(off.stats.density_samples > 0, "unculled: {:?}", off.stats);
+
+    // Light LOD: a full deck seen from above; half the light steps once T < 0.3.
+    let map = map_with(region(20.0, 40.0, 100.0, 120.0), |_, _| 1.0);
+    let lod = render(&map, above(30.0, 110.0), 48, 32, &settings());
+    let mut s = settings();
+    s.march.shortcuts.light_lod = false;
+    let full = render(&map, above(30.0, 110.0), 48, 32, &s);
+    assert!(
+        (lod.stats.light_samples as f64) < 0.9 * full.stats.light_samples as f64,
+        "light samples with LOD {} vs without {}",
+        lod.stats.light_samples,
+        full.stats.light_samples
+    );
+    let max_diff = lod
+        .alpha()
+        .iter()
+        .zip(full.alpha())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(max_diff < 0.02, "LOD changes opacity by {max_diff}");
+}

@@ -63,6 +63,10 @@ struct Running {
     frame_ms: f64,
     gpu_ms: Option<f64>,
     frames: u32,
+    /// Frame and GPU times after the first frame (start-up), for the `--frames` summary.
+    frame_log: Vec<f64>,
+    gpu_log: Vec<f64>,
+    renderer_size: (u32, u32),
     want_shot: bool,
 }
 
@@ -246,6 +250,9 @@ impl App {
             frame_ms: 0.0,
             gpu_ms: None,
             frames: 0,
+            frame_log: Vec::new(),
+            gpu_log: Vec::new(),
+            renderer_size: (0, 0),
             want_shot: false,
         })
     }
@@ -358,6 +365,10 @@ impl App {
             0.9 * r.frame_ms + 0.1 * dt * 1e3
         };
         r.fps = 1e3 / r.frame_ms.max(1e-3);
+        // Frame k's interval is frame k-1's work: skip the first two (start-up, pipelines).
+        if r.frames >= 2 {
+            r.frame_log.push(dt * 1e3);
+        }
         if !r.controls.paused && self.opts.frames.is_none() {
             r.pilot.step(&r.keys, dt);
         }
@@ -381,6 +392,7 @@ impl App {
             adapter: r.renderer.gpu.info.name.clone(),
             march_size: (mw, mh),
         };
+        r.renderer_size = (mw, mh);
         let input = r.egui_state.take_egui_input(&r.window);
         let mut actions = panel::Actions::default();
         let controls = &mut r.controls;
@@ -496,7 +508,14 @@ impl App {
         };
         queue.submit(extra.into_iter().chain([enc.finish()]));
         let (_, march, present) = r.renderer.read_stats()?;
-        r.gpu_ms = march.zip(present).map(|(a, b)| a + b);
+        // A CPU driver's timestamps are not to be trusted (see `print_timings`).
+        r.gpu_ms = march
+            .zip(present)
+            .map(|(a, b)| a + b)
+            .filter(|_| !r.renderer.gpu.is_cpu());
+        if let (Some(g), true) = (r.gpu_ms, r.frames >= 2) {
+            r.gpu_log.push(g);
+        }
         if let Some(p) = shot {
             let mut px = p.finish(&r.renderer.gpu)?;
             if matches!(
@@ -533,5 +552,30 @@ pub fn fly(opts: FlyOptions) -> anyhow::Result<()> {
     let mut app = App::new(opts);
     el.run_app(&mut app)
         .map_err(|e| anyhow!("window event loop: {e}"))?;
+    if let (Some(r), Some(_)) = (&app.run, app.opts.frames) {
+        println!("{}", summary(r));
+    }
     app.result
+}
+
+/// One line for `--frames` runs: the window's mean frame time after start-up.
+fn summary(r: &Running) -> String {
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let s = r.renderer_size;
+    let gpu = if r.gpu_log.is_empty() {
+        "no timestamps".to_string()
+    } else {
+        format!("GPU {:.1} ms", mean(&r.gpu_log))
+    };
+    format!(
+        "{} frames in a {}x{} window (march {}x{}, {}): mean frame {:.1} ms over the last {}, {gpu}",
+        r.frames,
+        r.config.width,
+        r.config.height,
+        s.0,
+        s.1,
+        r.controls.preset.name(),
+        mean(&r.frame_log),
+        r.frame_log.len(),
+    )
 }

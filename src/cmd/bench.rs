@@ -8,7 +8,7 @@ use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
-use super::ingest::{progress_bar, IngestOpts};
+use super::ingest::progress_bar;
 use super::render::parse_time;
 use crate::bench;
 use crate::render::{gpu, Gpu, Renderer};
@@ -42,17 +42,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--repeats {} must be in 1..=100", a.repeats);
     }
     let sample = super::demo::sample_path();
-    let opts = IngestOpts {
-        region: Some("30,60,-40,0".into()),
-        size: "800x600".into(),
-        level: None,
-        top_hpa: stratus_ingest::forecast::DEFAULT_TOP_HPA,
-        rh_cr: None,
-        rh_cr_low: 0.80,
-        rh_cr_mid: 0.65,
-        rh_cr_high: 0.80,
-        interp: stratus_ingest::spline::Interp::Spline,
-    };
+    let opts = super::demo::sample_opts();
     let map: CloudMap = opts.plan(&sample)?.build();
     let time = parse_time(&map.meta.source.valid_time)?;
     let g = Gpu::new(a.adapter.as_deref())?;
@@ -67,16 +57,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     pb.finish_and_clear();
     if let Some(c) = &a.chart {
         let img = bench::chart(&rows);
-        stratus_ingest::cloudmap::write_atomic(c, |w| {
-            image::codecs::png::PngEncoder::new(w)
-                .write_image(
-                    img.as_raw(),
-                    img.width(),
-                    img.height(),
-                    image::ExtendedColorType::Rgb8,
-                )
-                .map_err(|e| e.to_string())
-        })
+        super::render::write_png(
+            c,
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
         .with_context(|| c.display().to_string())?;
     }
     if a.json {
@@ -87,5 +74,3 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     Ok(ExitCode::SUCCESS)
 }
-
-use image::ImageEncoder;

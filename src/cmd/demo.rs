@@ -45,17 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let grib = a.grib.clone().unwrap_or_else(sample_path);
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("{}: cannot create", a.out.display()))?;
-    let opts = IngestOpts {
-        region: Some("30,60,-40,0".into()),
-        size: "800x600".into(),
-        level: None,
-        top_hpa: stratus_ingest::forecast::DEFAULT_TOP_HPA,
-        rh_cr: None,
-        rh_cr_low: 0.80,
-        rh_cr_mid: 0.65,
-        rh_cr_high: 0.80,
-        interp: stratus_ingest::spline::Interp::Spline,
-    };
+    let opts = sample_opts();
     let plan = opts.plan(&grib)?;
     let pb = progress_bar(plan.height() as u64, "ingest rows");
     let png = a.out.join("cloudmap.png");
@@ -146,4 +136,20 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     );
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
     Ok(ExitCode::SUCCESS)
+}
+
+/// The demo's (and bench's) ingest of the embedded sample: 30–60°N, 40°W–0°, 800×600, all
+/// layers with the default critical humidities.
+pub fn sample_opts() -> IngestOpts {
+    IngestOpts {
+        region: Some("30,60,-40,0".into()),
+        size: "800x600".into(),
+        level: None,
+        top_hpa: stratus_ingest::forecast::DEFAULT_TOP_HPA,
+        rh_cr: None,
+        rh_cr_low: 0.80,
+        rh_cr_mid: 0.65,
+        rh_cr_high: 0.80,
+        interp: stratus_ingest::spline::Interp::Spline,
+    }
 }
