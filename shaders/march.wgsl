@@ -32,9 +32,8 @@ struct Sample {
     inside: bool,    // inside the region
 };
 
-fn weather_at(pos: vec3<f32>) -> Sample {
+fn weather_at(uv: vec2<f32>) -> Sample {
     var s: Sample;
-    let uv = region_uv(f, lat_lon(pos));
     s.inside = uv.x >= 0.0;
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
@@ -46,8 +45,7 @@ fn weather_at(pos: vec3<f32>) -> Sample {
 }
 
 // True when the coarse map says nothing is within a cell of this point.
-fn coarse_empty(pos: vec3<f32>) -> bool {
-    let uv = region_uv(f, lat_lon(pos));
+fn coarse_empty(uv: vec2<f32>) -> bool {
     if (uv.x < 0.0) {
         return true;
     }
@@ -81,11 +79,24 @@ fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
 }
 
 // Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.
+// Map uv of a sample (negative u outside the region): one lat/lon per step, shared by the
+// coarse-map test and the weather lookup (on a CPU driver the step's fixed cost dominates).
+fn sample_uv(pos: vec3<f32>) -> vec2<f32> {
+    return region_uv(f, lat_lon(pos));
+}
+
 fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     if (h < f.layer_base.w || h > f.layer_top.w) {
         return 0.0;
     }
-    let s = weather_at(pos);
+    return density_uv(sample_uv(pos), h, np, detail);
+}
+
+fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
+    if (h < f.layer_base.w || h > f.layer_top.w) {
+        return 0.0;
+    }
+    let s = weather_at(uv);
     let cull = has_flag(f, FLAG_CULL);
     if (!s.inside) {
         if (cull) {
@@ -217,14 +228,15 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
             steps += 1u;
             let dt = min(clamp(f.march.x + f.march.y * t, f.march.x, f.march.z), seg_dt);
             let pos = origin + r.d * t;
-            if (skip && coarse_empty(pos)) {
+            let uv = sample_uv(pos);
+            if (skip && coarse_empty(uv)) {
                 local_count[C_SKIPPED] += 1u;
                 t += max(dt, f.region2.w);
                 continue;
             }
             let h = altitude_at(r.h, mu, t);
             let np = r.np + r.d * t;
-            let sigma = density(pos, h, np, detail) * f.light.y;
+            let sigma = density_uv(uv, h, np, detail) * f.light.y;
             if (sigma > 0.0) {
                 let up = normalize(pos);
                 var key = select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key);
