@@ -84,8 +84,21 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let dims = vec2<i32>(textureDimensions(cloud));
     let ip = vec2<i32>(px);
     var c = textureLoad(cloud, clamp(ip, vec2<i32>(0), dims - 1), 0);
-    // Not for the score's top-down frames: a mask view, where a blur would only move edges.
-    if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
+    if (f.misc.w < 0.99) {
+        // The window marches at a fraction of its size: bilinear upsampling (which also
+        // spreads the jitter over neighbouring march pixels) instead of blocks.
+        let q = px - 0.5;
+        let i0 = vec2<i32>(floor(q));
+        let fr = q - floor(q);
+        let lo = vec2<i32>(0);
+        let hi = dims - 1;
+        let a = textureLoad(cloud, clamp(i0, lo, hi), 0);
+        let b = textureLoad(cloud, clamp(i0 + vec2<i32>(1, 0), lo, hi), 0);
+        let c0 = textureLoad(cloud, clamp(i0 + vec2<i32>(0, 1), lo, hi), 0);
+        let d = textureLoad(cloud, clamp(i0 + vec2<i32>(1, 1), lo, hi), 0);
+        c = mix(mix(a, b, fr.x), mix(c0, d, fr.x), fr.y);
+    } else if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
+        // Not for the score's top-down frames: a mask view, where a blur would only move edges.
         // The march's interleaved-gradient jitter spreads its values evenly over every 3×3
         // block of pixels (Jimenez 2014), so a 3×3 mean resolves it; a still frame has no
         // temporal filter to do that, and thin layers otherwise show the jitter's lattice.

@@ -226,6 +226,7 @@ impl App {
             r
         };
         let mut controls = Controls::new(self.opts.preset, rh_cr, self.opts.plan.is_some(), cpu);
+        controls.set_map(&self.opts.map);
         if cpu {
             controls.status = "CPU adapter: marching at ¼ resolution".into();
         }
@@ -325,6 +326,7 @@ impl ApplicationHandler for App {
                     r.renderer.set_map(&map);
                     r.valid_time = valid_time(&map);
                     r.controls.rh_cr_editable = true;
+                    r.controls.set_map(&map);
                     r.controls.status = format!("loaded {}", path.display());
                     self.opts.map = map;
                     self.opts.plan = Some(plan);

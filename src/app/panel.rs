@@ -10,6 +10,8 @@ pub struct Controls {
     /// Hours added to the forecast's valid time.
     pub time_offset_h: f64,
     pub layers_on: [bool; 3],
+    /// Which layers the map has (only those get a checkbox and an rh_cr slider).
+    pub present: [bool; 3],
     /// Critical humidity per layer; editable when RH is held in memory (a GRIB2 was loaded).
     pub rh_cr: [f64; 3],
     pub rh_cr_editable: bool,
@@ -52,11 +54,21 @@ pub struct Hud {
 }
 
 impl Controls {
+    /// Take the layers and their critical humidities from a (new) map.
+    pub fn set_map(&mut self, map: &stratus_ingest::cloudmap::CloudMap) {
+        self.present = [false; 3];
+        for l in &map.meta.layers {
+            self.present[l.channel] = true;
+            self.rh_cr[l.channel] = l.rh_cr;
+        }
+    }
+
     pub fn new(preset: Preset, rh_cr: [f64; 3], rh_cr_editable: bool, cpu: bool) -> Controls {
         Controls {
             preset,
             time_offset_h: 0.0,
             layers_on: [true; 3],
+            present: [true; 3],
             rh_cr,
             rh_cr_editable,
             coverage: 1.0,
@@ -160,13 +172,16 @@ pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
             ui.label("layers");
             ui.horizontal(|ui| {
                 for (k, name) in ["low", "middle", "high"].iter().enumerate() {
-                    ui.checkbox(&mut c.layers_on[k], *name);
+                    if c.present[k] {
+                        ui.checkbox(&mut c.layers_on[k], *name);
+                    }
                 }
             });
             ui.add_enabled_ui(c.rh_cr_editable, |ui| {
                 for (k, name) in ["rh_cr low", "rh_cr middle", "rh_cr high"]
                     .iter()
                     .enumerate()
+                    .filter(|(k, _)| c.present[*k])
                 {
                     if ui
                         .add(egui::Slider::new(&mut c.rh_cr[k], 0.0..=0.99).text(*name))
