@@ -85,18 +85,23 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let ip = vec2<i32>(px);
     var c = textureLoad(cloud, clamp(ip, vec2<i32>(0), dims - 1), 0);
     if (f.misc.w < 0.99) {
-        // The window marches at a fraction of its size: bilinear upsampling (which also
-        // spreads the jitter over neighbouring march pixels) instead of blocks.
+        // The window marches at a fraction of its size: upsample bilinearly between 3×3 means
+        // (the jitter resolve below, at march resolution). Separable over a 4×4 footprint:
+        // weights (1−f)/3, 1/3, 1/3, f/3 per axis.
         let q = px - 0.5;
         let i0 = vec2<i32>(floor(q));
         let fr = q - floor(q);
-        let lo = vec2<i32>(0);
-        let hi = dims - 1;
-        let a = textureLoad(cloud, clamp(i0, lo, hi), 0);
-        let b = textureLoad(cloud, clamp(i0 + vec2<i32>(1, 0), lo, hi), 0);
-        let c0 = textureLoad(cloud, clamp(i0 + vec2<i32>(0, 1), lo, hi), 0);
-        let d = textureLoad(cloud, clamp(i0 + vec2<i32>(1, 1), lo, hi), 0);
-        c = mix(mix(a, b, fr.x), mix(c0, d, fr.x), fr.y);
+        let wx = vec4<f32>(1.0 - fr.x, 1.0, 1.0, fr.x) / 3.0;
+        let wy = vec4<f32>(1.0 - fr.y, 1.0, 1.0, fr.y) / 3.0;
+        c = vec4<f32>(0.0);
+        for (var j = 0; j < 4; j++) {
+            var row = vec4<f32>(0.0);
+            for (var i = 0; i < 4; i++) {
+                let at = clamp(i0 + vec2<i32>(i - 1, j - 1), vec2<i32>(0), dims - 1);
+                row += wx[i] * textureLoad(cloud, at, 0);
+            }
+            c += wy[j] * row;
+        }
     } else if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
         // Not for the score's top-down frames: a mask view, where a blur would only move edges.
         // The march's interleaved-gradient jitter spreads its values evenly over every 3×3
