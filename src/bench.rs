@@ -113,6 +113,7 @@ pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
     off("region culling", &|s| s.region_cull = false);
     off("empty-space skip", &|s| s.empty_skip = false);
     off("light LOD", &|s| s.light_lod = false);
+    off("clear-air stride", &|s| s.clear_stride = false);
     v
 }
 

@@ -49,6 +49,7 @@ pub const FLAG_DETAIL: u32 = 4;
 pub const FLAG_JITTER: u32 = 8;
 pub const FLAG_NO_SKY: u32 = 16;
 pub const FLAG_LIGHT_LOD: u32 = 32;
+pub const FLAG_STRIDE: u32 = 64;
 
 fn v4(v: DVec3, w: f64) -> [f32; 4] {
     [v.x as f32, v.y as f32, v.z as f32, w as f32]
@@ -135,6 +136,9 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     }
     if sc.light_lod {
         flags |= FLAG_LIGHT_LOD;
+    }
+    if sc.clear_stride {
+        flags |= FLAG_STRIDE;
     }
 
     let (cam_up, cam_fwd, cam_right, cam_upv, noise_origin, exposure_base);

@@ -86,6 +86,7 @@ impl Preset {
                     empty_skip: false,
                     light_lod: false,
                     jitter: false,
+                    clear_stride: false,
                 },
             },
         }
@@ -101,6 +102,9 @@ pub struct Shortcuts {
     pub empty_skip: bool,
     pub light_lod: bool,
     pub jitter: bool,
+    /// Double, then quadruple, the step in clear air; on meeting cloud back up and go on at
+    /// the normal step (Nubis' cheap-then-fine sampling, DESIGN §4b).
+    pub clear_stride: bool,
 }
 
 impl Shortcuts {
@@ -112,6 +116,7 @@ impl Shortcuts {
             empty_skip: true,
             light_lod: true,
             jitter: true,
+            clear_stride: true,
         }
     }
 }
