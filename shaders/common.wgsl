@@ -34,8 +34,8 @@ const FLAG_CULL: u32 = 2u;     // no sampling outside the region / cloudless map
 const FLAG_DETAIL: u32 = 4u;   // detail noise
 const FLAG_JITTER: u32 = 8u;   // per-pixel jittered ray start
 const FLAG_NO_SKY: u32 = 16u;  // scoring: black background, sun overhead
-const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting cloud
 const FLAG_LIGHT_LOD: u32 = 32u;// fewer light steps once the view ray is mostly opaque
+const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting cloud
 
 fn has_flag(f: Frame, bit: u32) -> bool {
     return (u32(f.march2.w) & bit) != 0u;

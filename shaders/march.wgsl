@@ -86,6 +86,7 @@ fn sample_uv(pos: vec3<f32>) -> vec2<f32> {
 }
 
 fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
+    // Checked here as well as in density_uv so a light sample outside the shells costs no lat/lon.
     if (h < f.layer_base.w || h > f.layer_top.w) {
         return 0.0;
     }

@@ -82,12 +82,16 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // misc.w: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.misc.w;
     let dims = vec2<i32>(textureDimensions(cloud));
-    let ip = vec2<i32>(px);
-    var c = textureLoad(cloud, clamp(ip, vec2<i32>(0), dims - 1), 0);
-    if (f.misc.w < 0.99) {
-        // The window marches at a fraction of its size: upsample bilinearly between 3×3 means
-        // (the jitter resolve below, at march resolution). Separable over a 4×4 footprint:
-        // weights (1−f)/3, 1/3, 1/3, f/3 per axis.
+    var c = textureLoad(cloud, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0);
+    // Resolve the march's interleaved-gradient jitter, which spreads its values evenly over
+    // every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and thin layers
+    // otherwise show the jitter's lattice. Not for the score's top-down frames (a mask view,
+    // where a blur only moves edges). One separable filter does both cases: bilinear between
+    // 3×3 means over a 4×4 footprint, weights (1−f)/3, 1/3, 1/3, f/3 per axis; at 1:1 f = 0
+    // and it is the plain 3×3 mean. When the window marches at a fraction of its size
+    // (misc.w < 1) it is also the upsample.
+    let resolve = has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY);
+    if (resolve || f.misc.w < 0.99) {
         let q = px - 0.5;
         let i0 = vec2<i32>(floor(q));
         let fr = q - floor(q);
@@ -102,21 +106,9 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             }
             c += wy[j] * row;
         }
-    } else if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
-        // Not for the score's top-down frames: a mask view, where a blur would only move edges.
-        // The march's interleaved-gradient jitter spreads its values evenly over every 3×3
-        // block of pixels (Jimenez 2014), so a 3×3 mean resolves it; a still frame has no
-        // temporal filter to do that, and thin layers otherwise show the jitter's lattice.
-        c = vec4<f32>(0.0);
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                c += textureLoad(cloud, clamp(ip + vec2<i32>(dx, dy), vec2<i32>(0), dims - 1), 0);
-            }
-        }
-        c /= 9.0;
     }
     var bg = vec3<f32>(0.0);
-    if ((u32(f.march2.w) & FLAG_NO_SKY) == 0u) {
+    if (!has_flag(f, FLAG_NO_SKY)) {
         bg = background(persp_dir(f, px));
     }
     let lin = bg * (1.0 - c.a) + c.rgb;

@@ -132,7 +132,7 @@ fn timed(
     repeats: usize,
 ) -> Result<(Output, f64, &'static str), RenderError> {
     let mut out = r.render(view, w, h, s)?;
-    let gpu_ok = !r.gpu.is_cpu() && r.gpu.timestamps;
+    let gpu_ok = r.gpu.timestamps;
     let mut times = Vec::new();
     for _ in 0..repeats {
         out = r.render(view, w, h, s)?;

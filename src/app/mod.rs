@@ -493,12 +493,18 @@ impl App {
         }
         r.frames += 1;
         let last = self.opts.frames.is_some_and(|n| r.frames >= n);
-        let shot = if (last && self.opts.screenshot.is_some()) || r.want_shot {
-            if !r.can_read_surface {
-                return Err(anyhow!(
-                    "this window surface cannot be read back for a screenshot; use `stratus render`"
-                ));
+        let scripted = last && self.opts.screenshot.is_some();
+        if (scripted || r.want_shot) && !r.can_read_surface {
+            const NO: &str =
+                "this window surface cannot be read back for a screenshot; use `stratus render`";
+            if scripted {
+                return Err(anyhow!(NO));
             }
+            // F12 in a live window: say so on the panel, keep flying.
+            r.controls.status = NO.into();
+            r.want_shot = false;
+        }
+        let shot = if (scripted || r.want_shot) && r.can_read_surface {
             Some(crate::render::readback::Pending::texture(
                 &r.renderer.gpu,
                 &mut enc,
@@ -510,11 +516,7 @@ impl App {
         };
         queue.submit(extra.into_iter().chain([enc.finish()]));
         let (_, march, present) = r.renderer.read_stats()?;
-        // A CPU driver's timestamps are not to be trusted (see `print_timings`).
-        r.gpu_ms = march
-            .zip(present)
-            .map(|(a, b)| a + b)
-            .filter(|_| !r.renderer.gpu.is_cpu());
+        r.gpu_ms = march.zip(present).map(|(a, b)| a + b);
         if let (Some(g), true) = (r.gpu_ms, r.frames >= 2) {
             r.gpu_log.push(g);
         }

@@ -102,10 +102,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "{}: {:.0} ms{}",
             path.display(),
             out.timings.wall_ms,
-            // A CPU driver's timestamps are not to be trusted: its wall time is the figure.
             out.timings
                 .march_ms
-                .filter(|_| !r.gpu.is_cpu())
                 .map_or(String::new(), |m| format!(" (march {m:.1} ms GPU)"))
         );
     }

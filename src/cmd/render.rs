@@ -204,19 +204,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     save_png(&a.out, &out.to_image()).with_context(|| format!("{}", a.out.display()))?;
     if a.timings {
-        print_timings(&out, !r.gpu.is_cpu());
+        print_timings(&out);
     }
     Ok(ExitCode::SUCCESS)
 }
 
-/// `trust_gpu`: false on a CPU driver, whose timestamp queries were seen to return nonsense
-/// (0.01 ms for a 1.5 s march on lavapipe); the wall time is then the figure to use.
-pub fn print_timings(out: &crate::render::Output, trust_gpu: bool) {
+/// GPU times are absent where the adapter has no (trustworthy) timestamps: CPU drivers.
+pub fn print_timings(out: &crate::render::Output) {
     let t = out.timings;
-    let f = |v: Option<f64>| match v {
-        Some(v) if trust_gpu => format!("{v:.3} ms"),
-        Some(_) => "n/a (CPU driver: see wall)".to_string(),
-        None => "n/a".to_string(),
+    let f = |v: Option<f64>| {
+        v.map_or("n/a (no GPU timestamps: see wall)".to_string(), |v| {
+            format!("{v:.3} ms")
+        })
     };
     println!(
         "march {}  present {}  wall {:.1} ms  ({}×{})",

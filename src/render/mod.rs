@@ -205,6 +205,32 @@ struct Targets {
     /// Headless output; made on first use.
     color: Option<wgpu::Texture>,
     march_bind: wgpu::BindGroup,
+    /// Present bind groups, by index into `Renderer::presents`; made on first use.
+    present_binds: Vec<Option<wgpu::BindGroup>>,
+}
+
+/// A single-level 2D texture.
+fn texture_2d(
+    dev: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }
 
 struct Queries {
@@ -275,22 +301,15 @@ impl Renderer {
         {
             return;
         }
-        let cloud = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("cloud"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: march::CLOUD_FORMAT,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
+        let cloud = texture_2d(
+            &self.gpu.device,
+            "cloud",
+            (width, height),
+            march::CLOUD_FORMAT,
+            wgpu::TextureUsages::STORAGE_BINDING
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        );
         let cloud_view = cloud.create_view(&Default::default());
         let march_bind = self
             .march
@@ -302,6 +321,7 @@ impl Renderer {
             cloud_view,
             color: None,
             march_bind,
+            present_binds: Vec::new(),
         });
     }
 
@@ -347,8 +367,20 @@ impl Renderer {
         uniforms.misc[3] = width as f32 / target_width as f32;
         self.ensure_targets(width, height);
         let pi = self.present_for(target_format);
-        let Some(t) = self.targets.as_ref() else {
+        let Some(t) = self.targets.as_mut() else {
             return Err(RenderError::Gpu("no render targets".into()));
+        };
+        if t.present_binds.len() <= pi {
+            t.present_binds.resize(pi + 1, None);
+        }
+        if t.present_binds[pi].is_none() {
+            let b = self.presents[pi].bind(&self.gpu, &self.march.uniforms, &t.cloud_view);
+            t.present_binds[pi] = Some(b);
+        }
+        let t = &*t;
+        let present = &self.presents[pi];
+        let Some(bind) = t.present_binds[pi].as_ref() else {
+            return Err(RenderError::Gpu("no present bind group".into()));
         };
         let gpu = &self.gpu;
         gpu.queue
@@ -367,11 +399,9 @@ impl Renderer {
                 end_of_pass_write_index: Some(1),
             }),
         );
-        let present = &self.presents[pi];
-        let bind = present.bind(gpu, &self.march.uniforms, &t.cloud_view);
         present.encode(
             enc,
-            &bind,
+            bind,
             target,
             q.map(|q| wgpu::RenderPassTimestampWrites {
                 query_set: &q.set,
@@ -463,23 +493,16 @@ impl Renderer {
                 .targets
                 .as_mut()
                 .ok_or_else(|| RenderError::Gpu("no targets".into()))?;
+            let size = (t.width, t.height);
             t.color
                 .get_or_insert_with(|| {
-                    dev.create_texture(&wgpu::TextureDescriptor {
-                        label: Some("frame"),
-                        size: wgpu::Extent3d {
-                            width: t.width,
-                            height: t.height,
-                            depth_or_array_layers: 1,
-                        },
-                        mip_level_count: 1,
-                        sample_count: 1,
-                        dimension: wgpu::TextureDimension::D2,
-                        format: FORMAT,
-                        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                            | wgpu::TextureUsages::COPY_SRC,
-                        view_formats: &[],
-                    })
+                    texture_2d(
+                        dev,
+                        "frame",
+                        size,
+                        FORMAT,
+                        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    )
                 })
                 .clone()
         };
