@@ -9,7 +9,8 @@
 @group(0) @binding(5) var clamp_lin: sampler;
 @group(0) @binding(6) var repeat_lin: sampler;
 @group(0) @binding(7) var out_cloud: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 8>;
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 9>;
+@group(0) @binding(9) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
 
 // Work counters (see render::Stats).
 const C_RAYS: u32 = 0u;
@@ -20,9 +21,13 @@ const C_LIGHT: u32 = 4u;
 const C_OUTSIDE: u32 = 5u;
 const C_SKIPPED: u32 = 6u;
 const C_EARLY: u32 = 7u;
+// Rays whose march the driver stopped before it ended: Mesa's llvmpipe caps the loop iterations
+// of one shader invocation (65 535, all loops together), which only `reference` reaches.
+const C_CUT: u32 = 8u;
+const N_COUNTERS: u32 = 9u;
 
-var<workgroup> wg_count: array<atomic<u32>, 8>;
-var<private> local_count: array<u32, 8>;
+var<workgroup> wg_count: array<atomic<u32>, 9>;
+var<private> local_count: array<u32, 9>;
 
 // Sun intensity relative to the sky model's units.
 const SUN_I: f32 = 20.0;
@@ -105,19 +110,22 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         }
         local_count[C_OUTSIDE] += 1u;
     }
-    if (cull && max(s.cm.x, max(s.cm.y, s.cm.z)) <= 0.0) {
+    // The drawn bands are disjoint (frame.rs makes them so): one layer at most holds h, and only
+    // its density is evaluated. A SIMD CPU driver (lavapipe) executes both sides of every branch,
+    // so a loop calling layer_density per layer would cost three evaluations on every sample.
+    var k = -1;
+    for (var j = 0; j < 3; j++) {
+        if (f.layer_on[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j]) {
+            k = j;
+        }
+    }
+    if (k < 0 || (cull && s.cm[k] <= 0.0)) {
         return 0.0;
     }
     local_count[C_DENSITY] += 1u;
-    var d = 0.0;
-    for (var k = 0; k < 3; k++) {
-        let base = f.layer_base[k];
-        let top = f.layer_top[k];
-        if (h >= base && h <= top && (s.cm[k] > 0.0 || !cull)) {
-            d += layer_density(np, s.cm[k], (h - base) / max(top - base, 1.0), detail) * f.layer_on[k];
-        }
-    }
-    return d * f.light.x;
+    let base = f.layer_base[k];
+    let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
+    return layer_density(np, s.cm[k], ph, detail) * f.layer_on[k] * f.light.x;
 }
 
 struct Ray {
@@ -174,6 +182,15 @@ const MIN_SEG_STEPS: f32 = 16.0;
 // Clear-air stride: normal steps taken after the last cloud sample before striding again.
 const FINE_AFTER_CLOUD: u32 = 8u;
 
+// Where a segment's march starts and its longest step: at least MIN_SEG_STEPS samples per
+// crossing of the layer shells, so a steep ray through a thin layer (400 hPa is ~700 m) does not
+// take one or two jittered samples and show the jitter pattern instead of the cloud.
+fn seg_start(seg: vec2<f32>, jitter: f32) -> vec2<f32> {
+    let seg_dt = max((seg.y - seg.x) / MIN_SEG_STEPS, 1.0);
+    let t = seg.x + jitter * min(clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z), seg_dt);
+    return vec2<f32>(t, seg_dt);
+}
+
 fn march(r: Ray, jitter: f32) -> vec4<f32> {
     let mu = dot(r.d, r.up);
     let outer = shell_hits(r.h, mu, f.layer_top.w);
@@ -188,11 +205,13 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
     }
+    // At most two segments: above and below the innermost shell's bottom.
     let inner = shell_hits(r.h, mu, f.layer_base.w);
-    var segs = array<vec2<f32>, 2>(vec2<f32>(max(outer.x, 0.0), end_all), vec2<f32>(1.0, 0.0));
+    var seg = vec2<f32>(max(outer.x, 0.0), end_all);
+    var seg2 = vec2<f32>(1.0, 0.0);
     if (inner.x <= inner.y && inner.y > 0.0) {
-        segs[0] = vec2<f32>(max(outer.x, 0.0), min(end_all, inner.x));
-        segs[1] = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
+        seg = vec2<f32>(max(outer.x, 0.0), min(end_all, inner.x));
+        seg2 = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
     }
 
     let no_sky = has_flag(f, FLAG_NO_SKY);
@@ -217,36 +236,54 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     var col = vec3<f32>(0.0);
     var depth_w = 0.0;
     var steps = 0u;
-    var done = false;
-    for (var si = 0; si < 2 && !done; si++) {
-        let seg = segs[si];
-        if (seg.y <= seg.x) {
-            continue;
-        }
-        // At least MIN_SEG_STEPS samples per crossing of the layer shells: a steep ray through
-        // a thin layer (400 hPa is ~700 m) would otherwise take one or two jittered samples and
-        // show the jitter pattern instead of the cloud.
-        let seg_dt = max((seg.y - seg.x) / MIN_SEG_STEPS, 1.0);
-        var t = seg.x + jitter * min(clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z), seg_dt);
-        var stride = false;
-        var mult = 1.0;
-        var fine_left = 0u;
+    var second = false;
+    var st = seg_start(seg, jitter);
+    var t = st.x;
+    var seg_dt = st.y;
+    var stride = false;
+    var mult = 1.0;
+    var fine_left = 0u;
+    var finished = false;
+    // Two nested loops: the inner one walks to the next sample with cloud, looking up density
+    // only; the outer one lights that sample. On a GPU this is the same march as one loop. On a
+    // SIMD CPU driver, where every branch is executed under a mask, it keeps the light march
+    // and shading out of clear-air steps (measured: docs/performance.md).
+    loop {
+        var sigma = 0.0;
+        var dt = 0.0;
+        var uv = vec2<f32>(0.0);
+        var h = 0.0;
+        var found = false;
         loop {
-            if (t >= seg.y || steps >= max_steps) {
+            if (t >= seg.y) {
+                if (second) {
+                    finished = true;
+                    break;
+                }
+                second = true;
+                seg = seg2;
+                st = seg_start(seg, jitter);
+                t = st.x;
+                seg_dt = st.y;
+                stride = false;
+                mult = 1.0;
+                fine_left = 0u;
+                continue;
+            }
+            if (steps >= max_steps) {
+                finished = true;
                 break;
             }
             steps += 1u;
-            let dt = min(clamp(f.march.x + f.march.y * t, f.march.x, f.march.z), seg_dt);
-            let pos = origin + r.d * t;
-            let uv = sample_uv(pos);
+            dt = min(clamp(f.march.x + f.march.y * t, f.march.x, f.march.z), seg_dt);
+            uv = sample_uv(origin + r.d * t);
             if (skip && coarse_empty(uv)) {
                 local_count[C_SKIPPED] += 1u;
                 t += max(dt, f.region2.w);
                 continue;
             }
-            let h = altitude_at(r.h, mu, t);
-            let np = r.np + r.d * t;
-            let sigma = density_uv(uv, h, np, detail) * f.light.y;
+            h = altitude_at(r.h, mu, t);
+            sigma = density_uv(uv, h, r.np + r.d * t, detail) * f.light.y;
             if (sigma > 0.0 && stride) {
                 // Met cloud on a long step: back up to the last clear sample and go on at the
                 // normal step, so the cloud's near edge is found at full resolution.
@@ -256,59 +293,67 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
                 mult = 1.0;
                 continue;
             }
-            if (sigma <= 0.0) {
-                if (fine_left > 0u) {
-                    fine_left -= 1u;
-                } else if (may_stride) {
-                    stride = true;
-                    mult = min(mult * 2.0, max_mult);
-                }
-            } else {
-                fine_left = FINE_AFTER_CLOUD;
-            }
             if (sigma > 0.0) {
-                let up = normalize(pos);
-                var key = select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key);
-                var key_col = select(f.moon_col.rgb, f.sun_col.rgb, sun_key);
-                var ambient = sky_radiance(f, up, up);
-                if (no_sky) {
-                    key = up;
-                    key_col = vec3<f32>(1.0);
-                    ambient = vec3<f32>(0.3);
-                }
-                var nl = n_light;
-                if (lod && tr < 0.3) {
-                    nl = max(1u, n_light / 2u);
-                }
-                let tau = light_depth(pos, h, np, key, nl);
-                // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
-                // black, plus two octaves of Hillaire's multiple-scattering approximation
-                // (extinction, phase g and energy each halved per octave).
-                let powder = 1.0 - exp(-2.0 * tau);
-                var ms = max(exp(-tau), f.light.w * exp(-0.25 * tau)) * ph_fn;
-                ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
-                ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
-                let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
-                let ph_amb = sat((h - f.layer_base.w) / max(f.layer_top.w - f.layer_base.w, 1.0));
-                let l_in = lit + ambient * (0.5 + 0.5 * ph_amb);
-                // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
-                let a = exp(-sigma * dt);
-                col += tr * (1.0 - a) * l_in;
-                depth_w += tr * (1.0 - a) * t;
-                tr *= a;
-                if (tr < early) {
-                    // Opaque enough: call it opaque, and give the cut-off remainder to what
-                    // was seen (renormalise) rather than to the background.
-                    local_count[C_EARLY] += 1u;
-                    col /= max(1.0 - tr, 1e-6);
-                    depth_w /= max(1.0 - tr, 1e-6);
-                    tr = 0.0;
-                    done = true;
-                    break;
-                }
+                fine_left = FINE_AFTER_CLOUD;
+                found = true;
+                break;
+            }
+            if (fine_left > 0u) {
+                fine_left -= 1u;
+            } else if (may_stride) {
+                stride = true;
+                mult = min(mult * 2.0, max_mult);
             }
             t += select(dt, mult * dt, stride);
         }
+        if (!found) {
+            break;
+        }
+        let pos = origin + r.d * t;
+        let np = r.np + r.d * t;
+        let up = normalize(pos);
+        var key = select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key);
+        var key_col = select(f.moon_col.rgb, f.sun_col.rgb, sun_key);
+        var ambient = sky_radiance(f, up, up);
+        if (no_sky) {
+            key = up;
+            key_col = vec3<f32>(1.0);
+            ambient = vec3<f32>(0.3);
+        }
+        var nl = n_light;
+        if (lod && tr < 0.3) {
+            nl = max(1u, n_light / 2u);
+        }
+        let tau = light_depth(pos, h, np, key, nl);
+        // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
+        // black, plus two octaves of Hillaire's multiple-scattering approximation
+        // (extinction, phase g and energy each halved per octave).
+        let powder = 1.0 - exp(-2.0 * tau);
+        var ms = max(exp(-tau), f.light.w * exp(-0.25 * tau)) * ph_fn;
+        ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
+        ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
+        let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
+        let ph_amb = sat((h - f.layer_base.w) / max(f.layer_top.w - f.layer_base.w, 1.0));
+        let l_in = lit + ambient * (0.5 + 0.5 * ph_amb);
+        // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
+        let a = exp(-sigma * dt);
+        col += tr * (1.0 - a) * l_in;
+        depth_w += tr * (1.0 - a) * t;
+        tr *= a;
+        if (tr < early) {
+            // Opaque enough: call it opaque, and give the cut-off remainder to what was seen
+            // (renormalise) rather than to the background.
+            local_count[C_EARLY] += 1u;
+            col /= max(1.0 - tr, 1e-6);
+            depth_w /= max(1.0 - tr, 1e-6);
+            tr = 0.0;
+            finished = true;
+            break;
+        }
+        t += dt;
+    }
+    if (!finished) {
+        local_count[C_CUT] += 1u;
     }
     local_count[C_STEPS] += steps;
     let alpha = 1.0 - tr;
@@ -327,7 +372,7 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    if (li < 8u) {
+    if (li < N_COUNTERS) {
         atomicStore(&wg_count[li], 0u);
     }
     workgroupBarrier();
@@ -343,14 +388,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         local_count[C_RAYS] = 1u;
         let c = march(make_ray(px), jitter);
         textureStore(out_cloud, vec2<i32>(id.xy), c);
-        for (var k = 0u; k < 8u; k++) {
+        if (local_count[C_CUT] != 0u) {
+            let i = id.y * size.x + id.x;
+            atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));
+        }
+        for (var k = 0u; k < N_COUNTERS; k++) {
             if (local_count[k] != 0u) {
                 atomicAdd(&wg_count[k], local_count[k]);
             }
         }
     }
     workgroupBarrier();
-    if (li < 8u) {
+    if (li < N_COUNTERS) {
         let v = atomicLoad(&wg_count[li]);
         if (v != 0u) {
             atomicAdd(&counters[li], v);

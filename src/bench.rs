@@ -60,6 +60,9 @@ pub struct Row {
     pub alpha_mae: Option<f64>,
     pub rgb_rmse: Option<f64>,
     pub mask_dice: Option<f64>,
+    /// Percentage of the frame's rays cut short by the driver (at the error size); the errors
+    /// leave those pixels out.
+    pub cut_pct: f64,
 }
 
 fn srgb_to_linear(c: u8) -> f64 {
@@ -71,29 +74,41 @@ fn srgb_to_linear(c: u8) -> f64 {
     }
 }
 
-/// (alpha MAE, linear-RGB RMSE, DSC of alpha > 0.5 masks) of `a` against the reference `r`.
+/// (alpha MAE, linear-RGB RMSE, DSC of alpha > 0.5 masks) of `a` against the reference `r`,
+/// over the pixels whose rays both frames marched to the end (see `Stats::cut_rays`).
 pub fn errors(a: &Output, r: &Output) -> (f64, f64, f64) {
-    let n = a.cloud.len().max(1) as f64;
-    let mae = a
+    let whole = |i: usize| !a.is_cut(i) && !r.is_cut(i);
+    let n = (0..a.cloud.len().min(r.cloud.len()))
+        .filter(|&i| whole(i))
+        .count()
+        .max(1) as f64;
+    let mut abs = 0.0;
+    let mut se = 0.0;
+    for (i, ((x, y), (p, q))) in a
         .cloud
         .iter()
         .zip(&r.cloud)
-        .map(|(x, y)| (x[3] - y[3]).abs() as f64)
-        .sum::<f64>()
-        / n;
-    let mut se = 0.0;
-    for (p, q) in a.pixels.chunks_exact(4).zip(r.pixels.chunks_exact(4)) {
+        .zip(a.pixels.chunks_exact(4).zip(r.pixels.chunks_exact(4)))
+        .enumerate()
+    {
+        if !whole(i) {
+            continue;
+        }
+        abs += (x[3] - y[3]).abs() as f64;
         for c in 0..3 {
             se += (srgb_to_linear(p[c]) - srgb_to_linear(q[c])).powi(2);
         }
     }
     let rmse = (se / (3.0 * n)).sqrt();
-    let dice = score::compare(
-        &score::mask(&a.alpha(), score::RENDER_THRESHOLD),
-        &score::mask(&r.alpha(), score::RENDER_THRESHOLD),
-    )
-    .dice;
-    (mae, rmse, dice)
+    let masked = |o: &Output| {
+        let mut m = score::mask(&o.alpha(), score::RENDER_THRESHOLD);
+        for (i, v) in m.iter_mut().enumerate() {
+            *v &= whole(i);
+        }
+        m
+    };
+    let dice = score::compare(&masked(a), &masked(r)).dice;
+    (abs / n, rmse, dice)
 }
 
 /// The configurations measured: presets, then `balanced` with each shortcut off alone.
@@ -209,6 +224,7 @@ pub fn run(
                 alpha_mae: Some(mae),
                 rgb_rmse: Some(rmse),
                 mask_dice: Some(dice),
+                cut_pct: 100.0 * small.stats.cut_rays as f64 / px,
             });
         }
         if let Some(rm) = ref_ms {
@@ -226,12 +242,12 @@ pub fn run(
 /// A markdown table of the rows.
 pub fn table(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| scene | config | size | frame ms | timed by | steps/px | density/px | light/px | × reference | alpha MAE | RGB RMSE | mask DSC |\n|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | config | size | frame ms | timed by | steps/px | density/px | light/px | × reference | alpha MAE | RGB RMSE | mask DSC | cut % |\n|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let f = |v: Option<f64>, d: usize| v.map_or("–".to_string(), |x| format!("{x:.d$}"));
     for r in rows {
         s += &format!(
-            "| {} | {} | {}×{} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} |\n",
+            "| {} | {} | {}×{} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} | {:.2} |\n",
             r.scene,
             r.config,
             r.width,
@@ -244,7 +260,8 @@ pub fn table(rows: &[Row]) -> String {
             f(r.speedup_vs_reference, 1),
             f(r.alpha_mae, 4),
             f(r.rgb_rmse, 4),
-            f(r.mask_dice, 4)
+            f(r.mask_dice, 4),
+            r.cut_pct
         );
     }
     s
@@ -317,4 +334,39 @@ pub fn chart(rows: &[Row]) -> image::RgbImage {
         }
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::{Stats, Timings};
+
+    fn frame(alpha: [f32; 4], grey: [u8; 4], cut: Vec<bool>) -> Output {
+        Output {
+            width: 2,
+            height: 2,
+            pixels: grey.iter().flat_map(|&g| [g, g, g, 255]).collect(),
+            cloud: alpha.iter().map(|&a| [a, a, a, a]).collect(),
+            cut,
+            stats: Stats::default(),
+            timings: Timings::default(),
+        }
+    }
+
+    #[test]
+    fn errors_leave_out_pixels_cut_short() {
+        let r = frame([1.0, 1.0, 0.0, 0.0], [200, 200, 0, 0], Vec::new());
+        // Pixel 3 differs from the reference in every measure.
+        let a = frame([1.0, 1.0, 0.0, 1.0], [200, 200, 0, 200], Vec::new());
+        let (mae, rmse, dice) = errors(&a, &r);
+        assert!((mae - 0.25).abs() < 1e-9, "{mae}");
+        assert!(rmse > 0.1 && dice < 0.9, "{rmse} {dice}");
+        // The same difference where the reference's ray was cut short is not counted.
+        let r_cut = frame(
+            [1.0, 1.0, 0.0, 0.0],
+            [200, 200, 0, 0],
+            vec![false, false, false, true],
+        );
+        assert_eq!(errors(&a, &r_cut), (0.0, 0.0, 1.0));
+    }
 }

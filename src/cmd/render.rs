@@ -228,12 +228,13 @@ pub fn print_timings(out: &crate::render::Output) {
     let s = out.stats;
     let px = s.rays.max(1) as f64;
     println!(
-        "per pixel: {:.1} steps, {:.1} density samples, {:.1} light samples; skipped {}, early exits {}, samples outside region {}",
+        "per pixel: {:.1} steps, {:.1} density samples, {:.1} light samples; skipped {}, early exits {}, samples outside region {}, rays cut short {}",
         s.steps as f64 / px,
         s.density_samples as f64 / px,
         s.light_samples as f64 / px,
         s.skipped_steps,
         s.early_exits,
-        s.outside_samples
+        s.outside_samples,
+        s.cut_rays
     );
 }

@@ -6,7 +6,7 @@ use glam::DVec3;
 
 use super::camera::View;
 use super::preset::MarchParams;
-use super::weather::WeatherMap;
+use super::weather::{Band, WeatherMap};
 use super::{RenderError, Settings};
 use crate::sun::{Light, Sky};
 use stratus_ingest::region::Region;
@@ -80,6 +80,32 @@ pub fn thickness_scale(thickness_m: f32) -> f32 {
     (REFERENCE_THICKNESS_M / thickness_m.max(1.0)).clamp(0.25, 4.0)
 }
 
+/// The drawn layers' altitude bands (m), made disjoint: where a band reaches into the one above
+/// it (a hand-edited sidecar, or a 100 m minimum thickness), the two meet half-way. The march
+/// shader relies on it: it evaluates the density of the one layer whose band holds a sample.
+pub fn disjoint_bands(bands: &[Option<Band>; 3], on: [bool; 3]) -> [Option<(f32, f32)>; 3] {
+    let mut out = [None; 3];
+    let mut below: Option<usize> = None;
+    for k in 0..3 {
+        let Some(b) = bands[k].filter(|_| on[k]) else {
+            continue;
+        };
+        let (mut base, top) = (b.base_m, b.top_m);
+        if let Some(j) = below {
+            if let Some((jb, jt)) = out[j] {
+                if base < jt {
+                    let mid = (0.5 * (base + jt)).clamp(jb, top);
+                    out[j] = Some((jb, mid));
+                    base = mid;
+                }
+            }
+        }
+        out[k] = Some((base, top));
+        below = Some(k);
+    }
+    out
+}
+
 pub struct FrameInput<'a> {
     pub view: View,
     pub width: u32,
@@ -101,15 +127,14 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     let mut layer_top = [0.0f32; 4];
     let mut layer_on = [0.0f32; 4];
     let (mut lo, mut hi) = (f32::MAX, f32::MIN);
-    for (k, band) in inp.weather.bands.iter().enumerate() {
-        if let Some(b) = band {
-            if s.layers_on[k] {
-                layer_base[k] = b.base_m;
-                layer_top[k] = b.top_m;
-                layer_on[k] = thickness_scale(b.top_m - b.base_m);
-                lo = lo.min(b.base_m);
-                hi = hi.max(b.top_m);
-            }
+    let bands = disjoint_bands(&inp.weather.bands, s.layers_on);
+    for (k, band) in bands.iter().enumerate() {
+        if let Some((base, top)) = *band {
+            layer_base[k] = base;
+            layer_top[k] = top;
+            layer_on[k] = thickness_scale(top - base);
+            lo = lo.min(base);
+            hi = hi.max(top);
         }
     }
     if lo > hi {
@@ -235,4 +260,55 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             (5.0 * visibility).min(2.0e6) as f32,
         ],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn band(base_m: f32, top_m: f32) -> Option<Band> {
+        Some(Band { base_m, top_m })
+    }
+
+    #[test]
+    fn bands_that_touch_are_kept() {
+        let b = [
+            band(0.0, 3000.0),
+            band(3000.0, 7000.0),
+            band(7000.0, 16000.0),
+        ];
+        let d = disjoint_bands(&b, [true; 3]);
+        assert_eq!(
+            d,
+            [
+                Some((0.0, 3000.0)),
+                Some((3000.0, 7000.0)),
+                Some((7000.0, 16000.0))
+            ]
+        );
+    }
+
+    #[test]
+    fn overlapping_bands_meet_half_way_and_off_layers_are_left_out() {
+        let b = [
+            band(0.0, 3400.0),
+            band(3000.0, 7000.0),
+            band(6800.0, 16000.0),
+        ];
+        let d = disjoint_bands(&b, [true; 3]);
+        assert_eq!(d[0], Some((0.0, 3200.0)));
+        assert_eq!(d[1], Some((3200.0, 6900.0)));
+        assert_eq!(d[2], Some((6900.0, 16000.0)));
+        // With the middle layer off, low and high do not overlap: nothing moves.
+        let d = disjoint_bands(&b, [true, false, true]);
+        assert_eq!(d, [Some((0.0, 3400.0)), None, Some((6800.0, 16000.0))]);
+        // A band inside the one below is cut to what lies above it.
+        let b = [band(0.0, 5000.0), band(1000.0, 4000.0), None];
+        let d = disjoint_bands(&b, [true; 3]);
+        for k in 0..2 {
+            let (lo, hi) = d[k].unwrap();
+            assert!(lo <= hi, "{d:?}");
+        }
+        assert!(d[0].unwrap().1 <= d[1].unwrap().0, "{d:?}");
+    }
 }

@@ -7,8 +7,21 @@ use super::shader;
 use super::weather::WeatherMap;
 
 /// Work counters, in the order march.wgsl writes them.
-pub const COUNTERS: usize = 8;
+pub const COUNTERS: usize = 9;
 pub const CLOUD_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+/// The per-pixel mask of rays cut short (1 bit a pixel) for a `width`×`height` march.
+pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
+    let words = (width as u64 * height as u64).div_ceil(32).max(1);
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("cut rays"),
+        size: words * 4,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
 
 pub struct MarchPass {
     pipeline: wgpu::ComputePipeline,
@@ -70,6 +83,7 @@ impl MarchPass {
         weather: &WeatherMap,
         noise: &NoiseTextures,
         cloud: &wgpu::TextureView,
+        cut_mask: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (w, c, s, d) = (
@@ -89,6 +103,7 @@ impl MarchPass {
             R::Sampler(&self.repeat_lin),
             R::TextureView(cloud),
             R::Buffer(self.counters.as_entire_buffer_binding()),
+            R::Buffer(cut_mask.as_entire_buffer_binding()),
         ];
         let entries: Vec<wgpu::BindGroupEntry> = entries
             .into_iter()

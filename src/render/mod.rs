@@ -164,6 +164,9 @@ pub struct Stats {
     pub outside_samples: u64,
     pub skipped_steps: u64,
     pub early_exits: u64,
+    /// Rays the driver stopped before their march ended (Mesa llvmpipe's cap on a shader's loop
+    /// iterations; only `reference`'s long rays reach it). Zero on a GPU.
+    pub cut_rays: u64,
 }
 
 /// GPU time per pass from timestamp queries where the adapter has them, and wall time.
@@ -182,11 +185,18 @@ pub struct Output {
     pub pixels: Vec<u8>,
     /// The cloud layer: premultiplied linear radiance and opacity per pixel.
     pub cloud: Vec<[f32; 4]>,
+    /// Per pixel, whether its ray was cut short (`Stats::cut_rays`); empty when none was.
+    pub cut: Vec<bool>,
     pub stats: Stats,
     pub timings: Timings,
 }
 
 impl Output {
+    /// Whether pixel `i`'s ray was cut short, so the pixel is incomplete.
+    pub fn is_cut(&self, i: usize) -> bool {
+        self.cut.get(i).copied().unwrap_or(false)
+    }
+
     pub fn alpha(&self) -> Vec<f32> {
         self.cloud.iter().map(|c| c[3]).collect()
     }
@@ -205,6 +215,8 @@ struct Targets {
     /// Headless output; made on first use.
     color: Option<wgpu::Texture>,
     march_bind: wgpu::BindGroup,
+    /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
+    cut_mask: wgpu::Buffer,
     /// Present bind groups, by index into `Renderer::presents`; made on first use.
     present_binds: Vec<Option<wgpu::BindGroup>>,
 }
@@ -311,9 +323,14 @@ impl Renderer {
                 | wgpu::TextureUsages::COPY_SRC,
         );
         let cloud_view = cloud.create_view(&Default::default());
-        let march_bind = self
-            .march
-            .bind(&self.gpu, &self.weather, &self.noise, &cloud_view);
+        let cut_mask = march::cut_mask_buffer(&self.gpu, width, height);
+        let march_bind = self.march.bind(
+            &self.gpu,
+            &self.weather,
+            &self.noise,
+            &cloud_view,
+            &cut_mask,
+        );
         self.targets = Some(Targets {
             width,
             height,
@@ -321,6 +338,7 @@ impl Renderer {
             cloud_view,
             color: None,
             march_bind,
+            cut_mask,
             present_binds: Vec::new(),
         });
     }
@@ -387,6 +405,7 @@ impl Renderer {
             .write_buffer(&self.march.uniforms, 0, bytemuck::bytes_of(&uniforms));
         gpu.queue
             .write_buffer(&self.march.counters, 0, &[0u8; march::COUNTERS * 4]);
+        enc.clear_buffer(&t.cut_mask, 0, None);
         let q = self.queries.as_ref();
         self.march.encode(
             enc,
@@ -439,6 +458,7 @@ impl Renderer {
             outside_samples: c[5],
             skipped_steps: c[6],
             early_exits: c[7],
+            cut_rays: c[8],
         };
         let (mut m, mut p) = (None, None);
         if let (Some(rb), Some(q)) = (rb_time, self.queries.as_ref()) {
@@ -535,11 +555,27 @@ impl Renderer {
             .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
             .collect();
         let (stats, march_ms, present_ms) = self.read_stats()?;
+        let mut cut = Vec::new();
+        if stats.cut_rays > 0 {
+            tracing::warn!(
+                "{} of {} rays were stopped by the driver before their march ended (a CPU driver's cap on shader loop iterations): the frame is incomplete where rays are longest",
+                stats.cut_rays,
+                stats.rays
+            );
+            let mut enc = gpu.device.create_command_encoder(&Default::default());
+            let rb = readback::Pending::buffer(gpu, &mut enc, &t.cut_mask);
+            gpu.queue.submit([enc.finish()]);
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&rb.finish(gpu)?);
+            cut = (0..(width * height) as usize)
+                .map(|i| words.get(i / 32).is_some_and(|w| w >> (i % 32) & 1 == 1))
+                .collect();
+        }
         Ok(Output {
             width,
             height,
             pixels,
             cloud,
+            cut,
             stats,
             timings: Timings {
                 march_ms,
