@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# What CI runs: formatting, lints, then every test. Run it before pushing.
+# What CI runs, and the README's test command: install what is missing (scripts/deps.sh), then
+# formatting, lints and every test. Run it before pushing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash scripts/deps.sh
+export RUST_LOG=${RUST_LOG:-warn}
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --release -- -D warnings
 cargo test --workspace --release
