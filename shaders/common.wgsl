@@ -5,30 +5,62 @@
 const PI: f32 = 3.14159265;
 const EARTH_R: f32 = 6371000.0;
 
-// Mirrors `render::frame::FrameUniforms` (all vec4 so the layout needs no padding rules).
+// Sun intensity in the sky model's units.
+const SUN_I: f32 = 20.0;
+
+// The per-frame uniforms: `render::frame::FrameUniforms` on the Rust side, field for field
+// (render::contract's test compares names, offsets, sizes and types with naga).
 struct Frame {
-    cam_up: vec4<f32>,      // xyz local up at the camera (ECEF), w camera altitude (m)
-    cam_fwd: vec4<f32>,     // xyz forward, w tan(fov_y / 2)
-    cam_right: vec4<f32>,   // xyz right, w aspect (width / height)
-    cam_upv: vec4<f32>,     // xyz view up, w mode (0 perspective, 1 top-down)
-    noise_origin: vec4<f32>,// xyz camera ECEF modulo the shape-noise period (m), w that period
-    sun_dir: vec4<f32>,     // xyz toward the Sun (ECEF), w 1 if the Sun is the key light
-    sun_col: vec4<f32>,     // rgb Sun irradiance (linear), w moon phase
-    moon_dir: vec4<f32>,
-    moon_col: vec4<f32>,
-    region: vec4<f32>,      // south, north, west, eastward span (degrees)
-    region2: vec4<f32>,     // top-down altitude (m), map width, map height, empty-skip length (m)
-    layer_base: vec4<f32>,  // base of low, middle, high (m); w lowest base
-    layer_top: vec4<f32>,   // top of low, middle, high (m); w highest top
-    layer_on: vec4<f32>,    // per layer: density scale, 0 when off; w coverage multiplier
-    light: vec4<f32>,       // density multiplier, extinction per unit density (1/m), HG g, Beer clamp ac
-    march: vec4<f32>,       // min step (m), step growth per metre of distance, max step (m), max steps
-    march2: vec4<f32>,      // light steps, first light step (m), early-exit transmittance, flags
-    misc: vec4<f32>,        // detail-noise period (m), exposure, haze extinction (1/m), march px per target px
-    size: vec4<f32>,        // output width, height, frame index, 0
+    cam_up: vec3<f32>,          // local up at the camera (ECEF unit vector)
+    cam_alt_m: f32,             // camera altitude above sea level
+    cam_fwd: vec3<f32>,         // view direction
+    tan_half_fov: f32,          // tan(vertical field of view / 2)
+    cam_right: vec3<f32>,
+    aspect: f32,                // width / height
+    cam_view_up: vec3<f32>,
+    top_down: u32,              // 1: the score's orthographic nadir view, 0: a perspective camera
+    noise_origin: vec3<f32>,    // camera ECEF modulo the shape-noise period (m)
+    shape_period_m: f32,
+    sun_dir: vec3<f32>,         // toward the Sun (ECEF)
+    sun_is_key: u32,            // 1 when the Sun is the key light, 0 when the Moon is
+    sun_col: vec3<f32>,         // Sun irradiance (linear RGB)
+    detail_period_m: f32,       // detail-noise period
+    moon_dir: vec3<f32>,
+    exposure: f32,              // linear exposure multiplier
+    moon_col: vec3<f32>,
+    haze_beta: f32,             // sea-level haze extinction (1/m), 3.912 / visibility
+    region_south: f32,          // the map's region (degrees)
+    region_north: f32,
+    region_west: f32,
+    region_lon_span: f32,       // eastward span from region_west
+    layer_base: vec3<f32>,      // base of the low, middle, high band (m), disjoint
+    shell_base_m: f32,          // lowest base of a drawn layer
+    layer_top: vec3<f32>,
+    shell_top_m: f32,           // highest top of a drawn layer
+    layer_scale: vec3<f32>,     // per layer: density scale, 0 when the layer is off
+    coverage_mul: f32,
+    density_mul: f32,
+    extinction: f32,            // per unit of DESIGN's density d (1/m)
+    hg_g: f32,                  // Henyey–Greenstein asymmetry
+    beer_clamp: f32,            // eq. 22's ac
+    step_min_m: f32,
+    step_growth: f32,           // step growth per metre of distance
+    step_max_m: f32,
+    max_steps: u32,
+    light_steps: u32,
+    light_step0_m: f32,         // first light step
+    early_exit: f32,            // transmittance below which a ray stops
+    flags: u32,                 // FLAG_* bits
+    out_size: vec2<f32>,        // march output width, height (px)
+    frame_index: f32,
+    haze_cutoff_m: f32,         // beyond this the haze hides everything (5 visibility lengths)
+    top_down_alt_m: f32,        // altitude of the top-down view's rays
+    skip_m: f32,                // empty-skip step length (one coarse cell)
+    march_scale: f32,           // march pixels per target pixel (the window may march smaller)
+    _pad0: f32,
 };
 
-// march2.w flag bits.
+// Frame.flags bits.
 const FLAG_SKIP: u32 = 1u;     // empty-space skipping over the coarse map
 const FLAG_CULL: u32 = 2u;     // no sampling outside the region / cloudless map
 const FLAG_DETAIL: u32 = 4u;   // detail noise
@@ -38,7 +70,7 @@ const FLAG_LIGHT_LOD: u32 = 32u;// fewer light steps once the view ray is mostly
 const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting cloud
 
 fn has_flag(f: Frame, bit: u32) -> bool {
-    return (u32(f.march2.w) & bit) != 0u;
+    return (f.flags & bit) != 0u;
 }
 
 // The paper's R(v, lo, ho, ln, hn) and SAT.
@@ -97,10 +129,10 @@ fn lat_lon(n: vec3<f32>) -> vec2<f32> {
 
 // Weather-map uv of a lat/lon, or a negative u when outside the region.
 fn region_uv(f: Frame, ll: vec2<f32>) -> vec2<f32> {
-    let dx = ll.y - f.region.z;
+    let dx = ll.y - f.region_west;
     let wrapped = dx - 360.0 * floor(dx / 360.0);
-    let u = wrapped / f.region.w;
-    let v = (f.region.y - ll.x) / (f.region.y - f.region.x);
+    let u = wrapped / f.region_lon_span;
+    let v = (f.region_north - ll.x) / (f.region_north - f.region_south);
     if (u < 0.0 || u > 1.0 || v < 0.0 || v > 1.0) {
         return vec2<f32>(-1.0, -1.0);
     }
@@ -115,7 +147,7 @@ fn luminance(c: vec3<f32>) -> f32 {
 // dome brighter toward the horizon, Mie glow around the Sun, twilight that outlasts sunset, a
 // faint airglow at night and the Moon's glow. Not a full scattering model; see docs/renderer.md.
 fn sky_radiance(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
-    let s = f.sun_dir.xyz;
+    let s = f.sun_dir;
     let sun_el = dot(s, up);
     let view_el = max(dot(v, up), 0.0);
     let day = smoothstep(-0.15, 0.05, sun_el);
@@ -124,21 +156,21 @@ fn sky_radiance(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
     let horizon_w = pow(1.0 - view_el, 4.0);
     var c = mix(zenith, horizon_col, horizon_w) * day * 0.5;
     let cos_s = dot(v, s);
-    c += f.sun_col.rgb * (hg(cos_s, 0.76) * 0.08 + hg(cos_s, 0.3) * 0.05);
+    c += f.sun_col * (hg(cos_s, 0.76) * 0.08 + hg(cos_s, 0.3) * 0.05);
     // Night: faint airglow (about 1/250 of full-moon light) and the moonlit sky.
-    let m = f.moon_dir.xyz;
+    let m = f.moon_dir;
     let moon_up = smoothstep(-0.05, 0.05, dot(m, up));
     c += vec3<f32>(0.3, 0.4, 0.6) * 1e-8 * (1.0 + horizon_w);
-    c += f.moon_col.rgb * moon_up * (mix(vec3<f32>(0.10, 0.19, 0.40), vec3<f32>(0.3, 0.36, 0.45), horizon_w)
+    c += f.moon_col * moon_up * (mix(vec3<f32>(0.10, 0.19, 0.40), vec3<f32>(0.3, 0.36, 0.45), horizon_w)
         + vec3<f32>(hg(dot(v, m), 0.76) * 0.08));
     return c;
 }
 
 // Perspective view direction through pixel position px (pixel units, centre = +0.5).
 fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
-    let ndc = vec2<f32>(px.x / f.size.x * 2.0 - 1.0, 1.0 - px.y / f.size.y * 2.0);
-    let tn = f.cam_fwd.w;
-    return normalize(f.cam_fwd.xyz + f.cam_right.xyz * (ndc.x * tn * f.cam_right.w) + f.cam_upv.xyz * (ndc.y * tn));
+    let ndc = vec2<f32>(px.x / f.out_size.x * 2.0 - 1.0, 1.0 - px.y / f.out_size.y * 2.0);
+    let tn = f.tan_half_fov;
+    return normalize(f.cam_fwd + f.cam_right * (ndc.x * tn * f.aspect) + f.cam_view_up * (ndc.y * tn));
 }
 
 // Aerial haze transmittance over `dist` metres between altitudes h0 and h1: the visibility's
@@ -146,6 +178,6 @@ fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
 // height (taken at the mean altitude), plus clear-air Rayleigh extinction (~1/300 km at sea level).
 fn haze_transmittance(f: Frame, h0: f32, h1: f32, dist: f32) -> f32 {
     let hm = max(0.5 * (h0 + h1), 0.0);
-    let beta = f.misc.z * exp(-hm / 1500.0) + 3.3e-6 * exp(-hm / 8000.0);
+    let beta = f.haze_beta * exp(-hm / 1500.0) + 3.3e-6 * exp(-hm / 8000.0);
     return exp(-beta * dist);
 }

@@ -1,18 +1,19 @@
 // March stage: one compute invocation per pixel marches the view ray through the cloud shells
 // (DESIGN §2–4) and writes premultiplied linear cloud radiance + opacity to a storage texture.
 
+// Bind groups by lifetime: 0 lives as long as the device, 1 as the map, 2 as the output size.
 @group(0) @binding(0) var<uniform> f: Frame;
-@group(0) @binding(1) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
-@group(0) @binding(2) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
-@group(0) @binding(3) var shape_tex: texture_3d<f32>;
-@group(0) @binding(4) var detail_tex: texture_3d<f32>;
-@group(0) @binding(5) var clamp_lin: sampler;
-@group(0) @binding(6) var repeat_lin: sampler;
-@group(0) @binding(7) var out_cloud: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 9>;
-@group(0) @binding(9) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
+@group(0) @binding(1) var shape_tex: texture_3d<f32>;
+@group(0) @binding(2) var detail_tex: texture_3d<f32>;
+@group(0) @binding(3) var clamp_lin: sampler;
+@group(0) @binding(4) var repeat_lin: sampler;
+@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, N_COUNTERS>;
+@group(1) @binding(0) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
+@group(1) @binding(1) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
+@group(2) @binding(0) var out_cloud: texture_storage_2d<rgba16float, write>;
+@group(2) @binding(1) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
 
-// Work counters (see render::Stats).
+// Work counters: indices into `counters`, the fields of render::march::Counters in order.
 const C_RAYS: u32 = 0u;
 const C_STEPS: u32 = 1u;
 const C_DENSITY: u32 = 2u;
@@ -26,11 +27,8 @@ const C_EARLY: u32 = 7u;
 const C_CUT: u32 = 8u;
 const N_COUNTERS: u32 = 9u;
 
-var<workgroup> wg_count: array<atomic<u32>, 9>;
-var<private> local_count: array<u32, 9>;
-
-// Sun intensity relative to the sky model's units.
-const SUN_I: f32 = 20.0;
+var<workgroup> wg_count: array<atomic<u32>, N_COUNTERS>;
+var<private> local_count: array<u32, N_COUNTERS>;
 
 struct Sample {
     cm: vec3<f32>,   // coverage per layer
@@ -43,8 +41,8 @@ fn weather_at(uv: vec2<f32>) -> Sample {
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
         let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
-        let on = select(vec3<f32>(0.0), vec3<f32>(1.0), f.layer_on.xyz > vec3<f32>(0.0));
-        s.cm = clamp(w.rgb * f.layer_on.w, vec3<f32>(0.0), vec3<f32>(1.0)) * on;
+        let on = select(vec3<f32>(0.0), vec3<f32>(1.0), f.layer_scale > vec3<f32>(0.0));
+        s.cm = clamp(w.rgb * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0)) * on;
     }
     return s;
 }
@@ -66,7 +64,7 @@ fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
     if (gs <= 0.0 || gd <= 0.0) {
         return 0.0;
     }
-    let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.noise_origin.w, 0.0);
+    let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.shape_period_m, 0.0);
     let fbm = sn.g * 0.625 + sn.b * 0.25 + sn.a * 0.125;
     let ns_tex = remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
     let ns = sat(remap(ns_tex * gs, 1.0 - cm, 1.0, 0.0, 1.0));
@@ -76,7 +74,7 @@ fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
     var nd_mod = 0.0;
     if (detail) {
         local_count[C_DETAIL] += 1u;
-        let dn = textureSampleLevel(detail_tex, repeat_lin, np / f.misc.x, 0.0);
+        let dn = textureSampleLevel(detail_tex, repeat_lin, np / f.detail_period_m, 0.0);
         let nd_fbm = dn.r * 0.625 + dn.g * 0.25 + dn.b * 0.125;
         nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
     }
@@ -92,14 +90,14 @@ fn sample_uv(pos: vec3<f32>) -> vec2<f32> {
 
 fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     // Checked here as well as in density_uv so a light sample outside the shells costs no lat/lon.
-    if (h < f.layer_base.w || h > f.layer_top.w) {
+    if (h < f.shell_base_m || h > f.shell_top_m) {
         return 0.0;
     }
     return density_uv(sample_uv(pos), h, np, detail);
 }
 
 fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
-    if (h < f.layer_base.w || h > f.layer_top.w) {
+    if (h < f.shell_base_m || h > f.shell_top_m) {
         return 0.0;
     }
     let s = weather_at(uv);
@@ -115,7 +113,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     // so a loop calling layer_density per layer would cost three evaluations on every sample.
     var k = -1;
     for (var j = 0; j < 3; j++) {
-        if (f.layer_on[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j]) {
+        if (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j]) {
             k = j;
         }
     }
@@ -125,7 +123,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     local_count[C_DENSITY] += 1u;
     let base = f.layer_base[k];
     let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
-    return layer_density(np, s.cm[k], ph, detail) * f.layer_on[k] * f.light.x;
+    return layer_density(np, s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
 }
 
 struct Ray {
@@ -137,21 +135,21 @@ struct Ray {
 
 fn make_ray(px: vec2<f32>) -> Ray {
     var r: Ray;
-    let size = f.size.xy;
-    if (f.cam_upv.w > 0.5) {
+    let size = f.out_size;
+    if (f.top_down != 0u) {
         // Top-down: one nadir ray per map pixel centre (DESIGN §1.2 pixel convention).
-        let lat = radians(f.region.y - px.y / size.y * (f.region.y - f.region.x));
-        let lon = radians(f.region.z + px.x / size.x * f.region.w);
+        let lat = radians(f.region_north - px.y / size.y * (f.region_north - f.region_south));
+        let lon = radians(f.region_west + px.x / size.x * f.region_lon_span);
         r.up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
-        r.h = f.region2.x;
+        r.h = f.top_down_alt_m;
         r.d = -r.up;
         let o = r.up * (EARTH_R + r.h);
-        r.np = o - f.noise_origin.w * floor(o / f.noise_origin.w);
+        r.np = o - f.shape_period_m * floor(o / f.shape_period_m);
     } else {
         r.d = persp_dir(f, px);
-        r.up = f.cam_up.xyz;
-        r.h = f.cam_up.w;
-        r.np = f.noise_origin.xyz;
+        r.up = f.cam_up;
+        r.h = f.cam_alt_m;
+        r.np = f.noise_origin;
     }
     return r;
 }
@@ -160,7 +158,7 @@ fn make_ray(px: vec2<f32>) -> Ray {
 fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) -> f32 {
     let up = normalize(pos);
     let mu = dot(key, up);
-    let step0 = f.march2.y;
+    let step0 = f.light_step0_m;
     var s = 0.0;
     var tau = 0.0;
     for (var i = 0u; i < n; i++) {
@@ -173,7 +171,7 @@ fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) ->
         let hl = altitude_at(h, mu, sm);
         let pl = pos + key * sm;
         local_count[C_LIGHT] += 1u;
-        tau += density(pl, hl, np + key * sm, false) * f.light.y * ds;
+        tau += density(pl, hl, np + key * sm, false) * f.extinction * ds;
     }
     return tau;
 }
@@ -187,26 +185,26 @@ const FINE_AFTER_CLOUD: u32 = 8u;
 // take one or two jittered samples and show the jitter pattern instead of the cloud.
 fn seg_start(seg: vec2<f32>, jitter: f32) -> vec2<f32> {
     let seg_dt = max((seg.y - seg.x) / MIN_SEG_STEPS, 1.0);
-    let t = seg.x + jitter * min(clamp(f.march.x + f.march.y * seg.x, f.march.x, f.march.z), seg_dt);
+    let t = seg.x + jitter * min(clamp(f.step_min_m + f.step_growth * seg.x, f.step_min_m, f.step_max_m), seg_dt);
     return vec2<f32>(t, seg_dt);
 }
 
 fn march(r: Ray, jitter: f32) -> vec4<f32> {
     let mu = dot(r.d, r.up);
-    let outer = shell_hits(r.h, mu, f.layer_top.w);
+    let outer = shell_hits(r.h, mu, f.shell_top_m);
     if (outer.y < 0.0 || outer.x > outer.y) {
         return vec4<f32>(0.0);
     }
-    // Beyond five visibility lengths the haze hides everything (size.w). Haze lives in the low
+    // Beyond five visibility lengths the haze hides everything (haze_cutoff_m). Haze lives in the low
     // atmosphere, so the length counts from where the ray enters the cloud shells: a camera in
     // orbit still sees the deck below it.
-    var end_all = min(outer.y, max(outer.x, 0.0) + f.size.w);
+    var end_all = min(outer.y, max(outer.x, 0.0) + f.haze_cutoff_m);
     let ground = shell_hits(r.h, mu, 0.0);
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
     }
     // At most two segments: above and below the innermost shell's bottom.
-    let inner = shell_hits(r.h, mu, f.layer_base.w);
+    let inner = shell_hits(r.h, mu, f.shell_base_m);
     var seg = vec2<f32>(max(outer.x, 0.0), end_all);
     var seg2 = vec2<f32>(1.0, 0.0);
     if (inner.x <= inner.y && inner.y > 0.0) {
@@ -222,14 +220,14 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     // lost (at 4× the top-down RGB error against reference rose from 0.006 to 0.023).
     let max_mult = select(4.0, 2.0, no_sky);
     let detail = has_flag(f, FLAG_DETAIL);
-    let sun_key = f.sun_dir.w > 0.5;
-    let cos_t = dot(r.d, select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key));
-    let g = f.light.z;
+    let sun_key = f.sun_is_key != 0u;
+    let cos_t = dot(r.d, select(f.moon_dir, f.sun_dir, sun_key));
+    let g = f.hg_g;
     let ph_fn = phase(cos_t, g);
     let powder_w = remap(cos_t, -1.0, 1.0, 0.0, 1.0);
-    let max_steps = u32(f.march.w);
-    let early = f.march2.z;
-    let n_light = u32(f.march2.x);
+    let max_steps = f.max_steps;
+    let early = f.early_exit;
+    let n_light = f.light_steps;
     let origin = r.up * (EARTH_R + r.h);
 
     var tr = 1.0;
@@ -275,15 +273,15 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
                 break;
             }
             steps += 1u;
-            dt = min(clamp(f.march.x + f.march.y * t, f.march.x, f.march.z), seg_dt);
+            dt = min(clamp(f.step_min_m + f.step_growth * t, f.step_min_m, f.step_max_m), seg_dt);
             uv = sample_uv(origin + r.d * t);
             if (skip && coarse_empty(uv)) {
                 local_count[C_SKIPPED] += 1u;
-                t += max(dt, f.region2.w);
+                t += max(dt, f.skip_m);
                 continue;
             }
             h = altitude_at(r.h, mu, t);
-            sigma = density_uv(uv, h, r.np + r.d * t, detail) * f.light.y;
+            sigma = density_uv(uv, h, r.np + r.d * t, detail) * f.extinction;
             if (sigma > 0.0 && stride) {
                 // Met cloud on a long step: back up to the last clear sample and go on at the
                 // normal step, so the cloud's near edge is found at full resolution.
@@ -312,8 +310,8 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         let pos = origin + r.d * t;
         let np = r.np + r.d * t;
         let up = normalize(pos);
-        var key = select(f.moon_dir.xyz, f.sun_dir.xyz, sun_key);
-        var key_col = select(f.moon_col.rgb, f.sun_col.rgb, sun_key);
+        var key = select(f.moon_dir, f.sun_dir, sun_key);
+        var key_col = select(f.moon_col, f.sun_col, sun_key);
         var ambient = sky_radiance(f, up, up);
         if (no_sky) {
             key = up;
@@ -329,11 +327,11 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         // black, plus two octaves of Hillaire's multiple-scattering approximation
         // (extinction, phase g and energy each halved per octave).
         let powder = 1.0 - exp(-2.0 * tau);
-        var ms = max(exp(-tau), f.light.w * exp(-0.25 * tau)) * ph_fn;
+        var ms = max(exp(-tau), f.beer_clamp * exp(-0.25 * tau)) * ph_fn;
         ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
         ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
         let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
-        let ph_amb = sat((h - f.layer_base.w) / max(f.layer_top.w - f.layer_base.w, 1.0));
+        let ph_amb = sat((h - f.shell_base_m) / max(f.shell_top_m - f.shell_base_m, 1.0));
         let l_in = lit + ambient * (0.5 + 0.5 * ph_amb);
         // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
         let a = exp(-sigma * dt);
@@ -376,13 +374,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         atomicStore(&wg_count[li], 0u);
     }
     workgroupBarrier();
-    let size = vec2<u32>(f.size.xy);
+    let size = vec2<u32>(f.out_size);
     if (all(id.xy < size)) {
         let px = vec2<f32>(id.xy) + 0.5;
         var jitter = 0.5;
         if (has_flag(f, FLAG_JITTER)) {
             // Interleaved gradient noise (Jimenez 2014), shifted per frame.
-            let q = px + vec2<f32>(5.588238 * f.size.z);
+            let q = px + vec2<f32>(5.588238 * f.frame_index);
             jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
         }
         local_count[C_RAYS] = 1u;

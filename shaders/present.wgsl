@@ -2,7 +2,7 @@
 // stars and the hazy ground, applies exposure and a filmic tone curve; the sRGB target encodes.
 
 @group(0) @binding(0) var<uniform> f: Frame;
-@group(0) @binding(1) var cloud: texture_2d<f32>;
+@group(1) @binding(0) var cloud: texture_2d<f32>;    // the march output; lives with its size
 
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
@@ -38,16 +38,16 @@ fn disc(v: vec3<f32>, dir: vec3<f32>, radius_rad: f32) -> f32 {
 }
 
 fn background(v: vec3<f32>) -> vec3<f32> {
-    let up = f.cam_up.xyz;
-    let h = f.cam_up.w;
+    let up = f.cam_up;
+    let h = f.cam_alt_m;
     let mu = dot(v, up);
     let ground = shell_hits(h, mu, 0.0);
     if (ground.x <= ground.y && ground.y > 0.0) {
         // Ground: a dull land albedo under Sun and sky, fading into the haze with distance.
         let t = max(ground.x, 0.0);
         let n = normalize(up * (EARTH_R + h) + v * t);
-        let sun = f.sun_col.rgb * max(dot(n, f.sun_dir.xyz), 0.0) * 20.0 * 0.25
-            + f.moon_col.rgb * max(dot(n, f.moon_dir.xyz), 0.0) * 20.0 * 0.25;
+        let sun = f.sun_col * max(dot(n, f.sun_dir), 0.0) * SUN_I * 0.25
+            + f.moon_col * max(dot(n, f.moon_dir), 0.0) * SUN_I * 0.25;
         let albedo = vec3<f32>(0.08, 0.10, 0.07);
         let lit = albedo * (sun + sky_radiance(f, n, n));
         let fog = haze_transmittance(f, h, 0.0, t);
@@ -55,9 +55,9 @@ fn background(v: vec3<f32>) -> vec3<f32> {
     }
     var c = sky_radiance(f, v, up);
     let above = smoothstep(-0.01, 0.01, mu);
-    c += f.sun_col.rgb * disc(v, f.sun_dir.xyz, 0.0047) * 2e4 * above;
-    c += f.moon_col.rgb * disc(v, f.moon_dir.xyz, 0.0045) * 2e4 * above;
-    let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir.xyz, up));
+    c += f.sun_col * disc(v, f.sun_dir, 0.0047) * 2e4 * above;
+    c += f.moon_col * disc(v, f.moon_dir, 0.0045) * 2e4 * above;
+    let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir, up));
     c += stars(v) * dark * above;
     return c;
 }
@@ -79,8 +79,8 @@ fn aces(x: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
-    // misc.w: march pixels per target pixel (the window may march at a lower resolution).
-    let px = in.pos.xy * f.misc.w;
+    // march_scale: march pixels per target pixel (the window may march at a lower resolution).
+    let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));
     var c = textureLoad(cloud, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0);
     // Resolve the march's interleaved-gradient jitter, which spreads its values evenly over
@@ -89,9 +89,9 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // where a blur only moves edges). One separable filter does both cases: bilinear between
     // 3×3 means over a 4×4 footprint, weights (1−f)/3, 1/3, 1/3, f/3 per axis; at 1:1 f = 0
     // and it is the plain 3×3 mean. When the window marches at a fraction of its size
-    // (misc.w < 1) it is also the upsample.
+    // (march_scale < 1) it is also the upsample.
     let resolve = has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY);
-    if (resolve || f.misc.w < 0.99) {
+    if (resolve || f.march_scale < 0.99) {
         let q = px - 0.5;
         let i0 = vec2<i32>(floor(q));
         let fr = q - floor(q);
@@ -112,7 +112,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         bg = background(persp_dir(f, px));
     }
     let lin = bg * (1.0 - c.a) + c.rgb;
-    var out = aces(lin * f.misc.y);
+    var out = aces(lin * f.exposure);
     if (ENCODE_SRGB) {
         out = srgb_encode(out);
     }

@@ -6,42 +6,12 @@ use chrono::{DateTime, Utc};
 use serde::Serialize;
 use stratus_ingest::cloudmap::CloudMap;
 
-use crate::render::{Camera, Output, Preset, RenderError, Renderer, Settings, View};
+use crate::render::{Output, Preset, RenderError, Renderer, Settings, View};
+use crate::scenes::Sample;
 use crate::score;
 
-/// A fixed view with its time of day.
-#[derive(Clone, Copy, Debug)]
-pub struct Scene {
-    pub name: &'static str,
-    pub view: View,
-    pub time: Option<&'static str>,
-}
-
-/// The bench scenes over the embedded sample's region (30–60°N, 40°W–0°).
-pub fn scenes() -> Vec<Scene> {
-    vec![
-        Scene {
-            name: "above-noon",
-            view: View::Perspective(Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0)),
-            time: None,
-        },
-        Scene {
-            name: "inside-layer",
-            view: View::Perspective(Camera::new(47.0, -17.0, 4_500.0, 60.0, 0.0)),
-            time: None,
-        },
-        Scene {
-            name: "horizon-dusk",
-            view: View::Perspective(Camera::new(36.0, -28.6, 50.0, 45.0, 10.0)),
-            time: Some("2024-06-01T20:45:00Z"),
-        },
-        Scene {
-            name: "top-down",
-            view: View::TopDown,
-            time: None,
-        },
-    ]
-}
+/// The bench's scenes, by name, over the synthetic sample (`scenes::synthetic`).
+pub const SCENES: [&str; 4] = ["above-noon", "inside-layer", "horizon-dusk", "top-down"];
 
 /// One measured configuration.
 #[derive(Clone, Debug, Serialize)]
@@ -161,8 +131,10 @@ fn timed(
 }
 
 /// Run the bench: timings at `size`, errors against `reference` at `error_size`.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     r: &mut Renderer,
+    sample: &Sample,
     map: &CloudMap,
     time: DateTime<Utc>,
     size: (u32, u32),
@@ -172,13 +144,9 @@ pub fn run(
 ) -> Result<Vec<Row>, RenderError> {
     r.set_map(map);
     let mut rows = Vec::new();
-    for sc in scenes() {
+    for sc in sample.scenes_named(&SCENES) {
         let mut base = Settings::new(Preset::Reference, time);
-        if let Some(t) = sc.time {
-            base.time = DateTime::parse_from_rfc3339(t)
-                .map(|d| d.with_timezone(&Utc))
-                .unwrap_or(time);
-        }
+        base.time = sc.time.unwrap_or(time);
         progress(&format!("{} reference", sc.name));
         let reference = r.render(&sc.view, error_size.0, error_size.1, &base)?;
         let mut ref_ms = None;

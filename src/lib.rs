@@ -1,9 +1,12 @@
-//! `stratus`: the renderer, the scorer and the app around a CloudMap made by `stratus-ingest`.
+//! `stratus`: the renderer, the scorer and the window around a CloudMap made by
+//! `stratus-ingest`. The command line lives in the binary (`src/main.rs`, `src/cmd/`), so
+//! nothing here depends on clap or indicatif.
 
 pub mod app;
 pub mod bench;
-pub mod cmd;
 pub mod flight;
+pub mod picture;
 pub mod render;
+pub mod scenes;
 pub mod score;
 pub mod sun;

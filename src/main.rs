@@ -3,7 +3,8 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use stratus::cmd;
+
+mod cmd;
 
 #[derive(Parser)]
 #[command(
@@ -58,6 +59,13 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if !matches!(cli.command, Command::Fly(_)) && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // Mesa's device-select Vulkan layer probes for a Wayland display to rank GPUs and prints
+        // "error: XDG_RUNTIME_DIR is invalid" where there is none. Headless commands rank the
+        // adapters themselves (render::gpu), so the layer is switched off for them (still one
+        // thread here).
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let result = match cli.command {
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Ingest(a) => cmd::ingest::run(a),

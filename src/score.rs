@@ -76,6 +76,28 @@ pub fn diff_image(render: &[bool], map: &[bool]) -> Vec<[u8; 3]> {
         .collect()
 }
 
+impl Report {
+    /// The total's [`diff_image`] as an opaque picture.
+    pub fn diff_picture(&self) -> image::RgbaImage {
+        let px = diff_image(&self.total.render_mask, &self.total.map_mask);
+        let w = self.width;
+        image::RgbaImage::from_fn(self.width, self.height, |x, y| {
+            let p = px.get((y * w + x) as usize).copied().unwrap_or([0; 3]);
+            image::Rgba([p[0], p[1], p[2], 255])
+        })
+    }
+}
+
+/// The score's default render size: the map's, at most 1024 on the longer side.
+pub fn default_size(map: &CloudMap) -> (u32, u32) {
+    let (w, h) = (map.meta.width, map.meta.height);
+    let k = (w.max(h) as f64 / 1024.0).max(1.0);
+    (
+        ((w as f64 / k).round() as u32).max(1),
+        ((h as f64 / k).round() as u32).max(1),
+    )
+}
+
 /// Render threshold: a pixel is cloud when the top-down opacity exceeds this.
 pub const RENDER_THRESHOLD: f32 = 0.5;
 /// Map threshold: a pixel is cloud when the map's coverage exceeds this. Measured, not guessed:

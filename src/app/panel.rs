@@ -64,21 +64,23 @@ impl Controls {
     }
 
     pub fn new(preset: Preset, rh_cr: [f64; 3], rh_cr_editable: bool, cpu: bool) -> Controls {
+        // The look starts at the renderer's defaults (defined once, in Settings::new).
+        let d = Settings::new(preset, DateTime::<Utc>::UNIX_EPOCH);
         Controls {
             preset,
             time_offset_h: 0.0,
-            layers_on: [true; 3],
+            layers_on: d.layers_on,
             present: [true; 3],
             rh_cr,
             rh_cr_editable,
-            coverage: 1.0,
-            density: 1.0,
-            extinction: 0.04,
-            hg_g: 0.6,
+            coverage: d.coverage_mul,
+            density: d.density_mul,
+            extinction: d.extinction,
+            hg_g: d.hg_g,
             sun_override: false,
             sun_azimuth: 135.0,
             sun_elevation: 45.0,
-            exposure: 0.0,
+            exposure: d.exposure_ev,
             render_scale: if cpu { 0.25 } else { 1.0 },
             paused: false,
             teleport: String::new(),

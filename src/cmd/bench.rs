@@ -8,10 +8,11 @@ use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
-use super::ingest::progress_bar;
-use super::render::parse_time;
-use crate::bench;
-use crate::render::{gpu, Gpu, Renderer};
+use stratus::picture::write_png;
+use stratus::render::{gpu, Gpu, Renderer};
+use stratus::{bench, scenes};
+
+use super::options::progress_bar;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -41,23 +42,32 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.repeats == 0 || a.repeats > 100 {
         anyhow::bail!("--repeats {} must be in 1..=100", a.repeats);
     }
-    let sample = super::demo::sample_path();
-    let opts = super::demo::sample_opts();
-    let map: CloudMap = opts.plan(&sample)?.build();
-    let time = parse_time(&map.meta.source.valid_time)?;
+    let sample = scenes::synthetic();
+    let map: CloudMap = sample.map()?;
+    let time = stratus::sun::valid_time(&map.meta)
+        .ok_or_else(|| anyhow::anyhow!("the sample has no valid time"))?;
     let g = Gpu::new(a.adapter.as_deref())?;
     eprintln!("stratus: adapter {}", gpu::describe(&g.info));
     let mut r = Renderer::new(g, &map);
-    let total = (bench::scenes().len() * (bench::configs().len() + 1)) as u64;
+    let total = (bench::SCENES.len() * (bench::configs().len() + 1)) as u64;
     let pb = progress_bar(total, "bench");
-    let rows = bench::run(&mut r, &map, time, size, error_size, a.repeats, &|what| {
-        pb.set_message(what.to_string());
-        pb.inc(1);
-    })?;
+    let rows = bench::run(
+        &mut r,
+        &sample,
+        &map,
+        time,
+        size,
+        error_size,
+        a.repeats,
+        &|what| {
+            pb.set_message(what.to_string());
+            pb.inc(1);
+        },
+    )?;
     pb.finish_and_clear();
     if let Some(c) = &a.chart {
         let img = bench::chart(&rows);
-        super::render::write_png(
+        write_png(
             c,
             img.as_raw(),
             img.width(),

@@ -7,10 +7,11 @@ use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
-use super::ingest::progress_bar;
-use super::render::{save_png, LookOpts};
-use crate::flight::FlightPath;
-use crate::render::{Renderer, View};
+use stratus::flight::FlightPath;
+use stratus::picture::save_png;
+use stratus::render::{Renderer, View};
+
+use super::options::{progress_bar, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

@@ -6,9 +6,10 @@ use std::process::ExitCode;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
-use super::ingest::{progress_bar, IngestOpts};
-use crate::app::{fly, FlyOptions};
-use crate::render::Preset;
+use stratus::app::{fly, FlyOptions};
+use stratus::render::Preset;
+
+use super::options::{progress_bar, IngestOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -19,7 +20,8 @@ pub struct Args {
     /// Window size WxH.
     #[arg(long = "window", default_value = "1280x720")]
     pub window: String,
-    #[arg(long, value_enum, default_value = "fast")]
+    /// Quality preset: fast, balanced, high or reference.
+    #[arg(long, default_value = "fast")]
     pub preset: Preset,
     /// Adapter to use (any part of its name).
     #[arg(long)]
@@ -50,18 +52,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         pb.finish_and_clear();
         (map, Some(plan))
     };
-    // A dropped file is ingested over the current map's region and size.
-    let region = map.meta.region;
-    let (mw, mh) = (map.meta.width, map.meta.height);
     let base = a.ingest.clone();
-    let ingest_dropped = Box::new(move |p: &std::path::Path| {
-        let mut o = base.clone();
-        o.region = Some(format!(
-            "{},{},{},{}",
-            region.south, region.north, region.west, region.east
-        ));
-        o.size = format!("{mw}x{mh}");
-        let plan = o.plan(p)?;
+    let ingest_dropped = Box::new(move |p: &std::path::Path, region, size| {
+        let plan = base.plan_over(p, region, size)?;
         Ok((plan.build(), plan))
     });
     fly(FlyOptions {

@@ -1,4 +1,5 @@
-//! One module per CLI subcommand: argument struct (clap) and `run`.
+//! The command line: one module per subcommand (its clap arguments and `run`), and the options
+//! and parsers they share (`options`). Only the binary sees this module.
 
 pub mod bench;
 pub mod demo;
@@ -6,5 +7,6 @@ pub mod flight;
 pub mod fly;
 pub mod ingest;
 pub mod inspect;
+pub mod options;
 pub mod render;
 pub mod score;

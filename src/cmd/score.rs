@@ -7,10 +7,11 @@ use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
-use super::ingest::IngestOpts;
-use super::render::{save_png, LookOpts};
-use crate::render::Renderer;
-use crate::score::{self, Report};
+use stratus::picture::save_png;
+use stratus::render::Renderer;
+use stratus::score::{self, Report};
+
+use super::options::{IngestOpts, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -42,15 +43,6 @@ pub struct Args {
     /// Exit 1 when the total DSC is below this (the CI gate).
     #[arg(long)]
     pub min_dice: Option<f64>,
-}
-
-pub fn default_size(map: &CloudMap) -> (u32, u32) {
-    let (w, h) = (map.meta.width, map.meta.height);
-    let k = (w.max(h) as f64 / 1024.0).max(1.0);
-    (
-        ((w as f64 / k).round() as u32).max(1),
-        ((h as f64 / k).round() as u32).max(1),
-    )
 }
 
 pub fn load_or_ingest(
@@ -107,7 +99,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let settings = a.look.settings(&map)?;
     let (w, h) = match &a.score_size {
         Some(s) => parse_size(s)?,
-        None => default_size(&map),
+        None => score::default_size(&map),
     };
     let mut renderer = Renderer::new(a.look.gpu()?, &map);
     let mut report = score::score(
@@ -123,12 +115,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         report.map = src.display().to_string();
     }
     if let Some(d) = &a.diff {
-        let px = score::diff_image(&report.total.render_mask, &report.total.map_mask);
-        let img = image::RgbaImage::from_fn(w, h, |x, y| {
-            let p = px[(y * w + x) as usize];
-            image::Rgba([p[0], p[1], p[2], 255])
-        });
-        save_png(d, &img).with_context(|| d.display().to_string())?;
+        save_png(d, &report.diff_picture()).with_context(|| d.display().to_string())?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -1,58 +1,119 @@
 //! The per-frame uniform block: camera, lights, region, layers and march parameters, formed in
 //! f64 on the CPU and handed to the GPU as camera-relative f32 (DESIGN §4).
 
-use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use super::camera::View;
 use super::preset::MarchParams;
 use super::weather::{Band, WeatherMap};
 use super::{RenderError, Settings};
-use crate::sun::{Light, Sky};
+use crate::sun::Sky;
 use stratus_ingest::region::Region;
 
 /// Shape-noise tile period (m): Worley cells of 6 km at the base octave, 1.5 km at the top.
 pub const SHAPE_PERIOD_M: f64 = 24_000.0;
 /// Detail-noise tile period (m); the shape period is a whole multiple of it.
 pub const DETAIL_PERIOD_M: f64 = 2_000.0;
-/// Sun intensity in the sky model's units (mirrors SUN_I in march.wgsl).
-const SUN_I: f64 = 20.0;
+/// Sun intensity in the sky model's units (`SUN_I` in shaders/common.wgsl).
+pub const SUN_INTENSITY: f64 = 20.0;
 
-/// Mirrors `struct Frame` in shaders/common.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct FrameUniforms {
-    pub cam_up: [f32; 4],
-    pub cam_fwd: [f32; 4],
-    pub cam_right: [f32; 4],
-    pub cam_upv: [f32; 4],
-    pub noise_origin: [f32; 4],
-    pub sun_dir: [f32; 4],
-    pub sun_col: [f32; 4],
-    pub moon_dir: [f32; 4],
-    pub moon_col: [f32; 4],
-    pub region: [f32; 4],
-    pub region2: [f32; 4],
-    pub layer_base: [f32; 4],
-    pub layer_top: [f32; 4],
-    pub layer_on: [f32; 4],
-    pub light: [f32; 4],
-    pub march: [f32; 4],
-    pub march2: [f32; 4],
-    pub misc: [f32; 4],
-    pub size: [f32; 4],
+crate::gpu_struct! {
+    /// The per-frame uniforms: `struct Frame` in shaders/common.wgsl, field for field (the
+    /// contract test in render::contract compares the two). Directions are ECEF unit vectors,
+    /// lengths metres; formed in f64 and handed over camera-relative in f32.
+    pub struct FrameUniforms as "Frame" {
+        /// Local up at the camera.
+        pub cam_up: [f32; 3],
+        /// Camera altitude above sea level.
+        pub cam_alt_m: f32,
+        pub cam_fwd: [f32; 3],
+        pub tan_half_fov: f32,
+        pub cam_right: [f32; 3],
+        /// Width / height.
+        pub aspect: f32,
+        pub cam_view_up: [f32; 3],
+        /// 1 for the score's orthographic nadir view, 0 for a perspective camera.
+        pub top_down: u32,
+        /// The camera's ECEF position modulo the shape-noise period.
+        pub noise_origin: [f32; 3],
+        pub shape_period_m: f32,
+        pub sun_dir: [f32; 3],
+        /// 1 when the Sun is the key light, 0 when the Moon is.
+        pub sun_is_key: u32,
+        pub sun_col: [f32; 3],
+        pub detail_period_m: f32,
+        pub moon_dir: [f32; 3],
+        /// Linear exposure multiplier.
+        pub exposure: f32,
+        pub moon_col: [f32; 3],
+        /// Sea-level haze extinction (1/m): Koschmieder's 3.912 / visibility.
+        pub haze_beta: f32,
+        pub region_south: f32,
+        pub region_north: f32,
+        pub region_west: f32,
+        /// Eastward span from `region_west` (degrees).
+        pub region_lon_span: f32,
+        /// Base of the low, middle and high bands, made disjoint ([`disjoint_bands`]).
+        pub layer_base: [f32; 3],
+        /// Lowest base of a drawn layer.
+        pub shell_base_m: f32,
+        pub layer_top: [f32; 3],
+        /// Highest top of a drawn layer.
+        pub shell_top_m: f32,
+        /// Per layer: density scale ([`thickness_scale`]), 0 when the layer is off.
+        pub layer_scale: [f32; 3],
+        pub coverage_mul: f32,
+        pub density_mul: f32,
+        /// Extinction per unit of DESIGN's density d (1/m).
+        pub extinction: f32,
+        pub hg_g: f32,
+        pub beer_clamp: f32,
+        pub step_min_m: f32,
+        /// Step growth per metre of distance.
+        pub step_growth: f32,
+        pub step_max_m: f32,
+        pub max_steps: u32,
+        pub light_steps: u32,
+        pub light_step0_m: f32,
+        /// Transmittance below which a ray stops.
+        pub early_exit: f32,
+        /// [`flags`] bits.
+        pub flags: u32,
+        /// March output width and height (px).
+        pub out_size: [f32; 2],
+        pub frame_index: f32,
+        /// Beyond this distance the haze hides everything (five visibility lengths).
+        pub haze_cutoff_m: f32,
+        /// Altitude the top-down view's rays start from.
+        pub top_down_alt_m: f32,
+        /// Empty-space skip length (one coarse cell).
+        pub skip_m: f32,
+        /// March pixels per target pixel (the window may march at a fraction of its size).
+        pub march_scale: f32,
+        pub _pad0: f32,
+    }
 }
 
-pub const FLAG_SKIP: u32 = 1;
-pub const FLAG_CULL: u32 = 2;
-pub const FLAG_DETAIL: u32 = 4;
-pub const FLAG_JITTER: u32 = 8;
-pub const FLAG_NO_SKY: u32 = 16;
-pub const FLAG_LIGHT_LOD: u32 = 32;
-pub const FLAG_STRIDE: u32 = 64;
+/// Bits of [`FrameUniforms::flags`] (`FLAG_*` in shaders/common.wgsl).
+pub mod flags {
+    /// Empty-space skipping over the coarse map.
+    pub const SKIP: u32 = 1;
+    /// No sampling outside the region or over a cloudless map.
+    pub const CULL: u32 = 2;
+    /// Detail noise.
+    pub const DETAIL: u32 = 4;
+    /// Per-pixel jittered ray start.
+    pub const JITTER: u32 = 8;
+    /// Scoring: black background, Sun overhead.
+    pub const NO_SKY: u32 = 16;
+    /// Fewer light steps once the view ray is mostly opaque.
+    pub const LIGHT_LOD: u32 = 32;
+    /// Longer steps in clear air, back up on meeting cloud.
+    pub const STRIDE: u32 = 64;
+}
 
-fn v4(v: DVec3, w: f64) -> [f32; 4] {
-    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+fn v3(v: DVec3) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
 }
 
 fn luminance(c: [f64; 3]) -> f64 {
@@ -64,9 +125,9 @@ fn luminance(c: [f64; 3]) -> f64 {
 pub fn auto_exposure(sky: &Sky) -> f64 {
     let day = ((sky.sun_elevation_deg.to_radians().sin() + 0.15) / 0.2).clamp(0.0, 1.0);
     let day = day * day * (3.0 - 2.0 * day);
-    let key = luminance(sky.sun.colour) * SUN_I * 0.1
+    let key = luminance(sky.sun.colour) * SUN_INTENSITY * 0.1
         + 0.15 * day
-        + luminance(sky.moon.colour) * SUN_I * 0.12;
+        + luminance(sky.moon.colour) * SUN_INTENSITY * 0.12;
     0.6 / key.max(1e-9) * (0.2 + 0.8 * day)
 }
 
@@ -108,13 +169,31 @@ pub fn disjoint_bands(bands: &[Option<Band>; 3], on: [bool; 3]) -> [Option<(f32,
 
 pub struct FrameInput<'a> {
     pub view: View,
+    /// March size (px).
     pub width: u32,
     pub height: u32,
+    /// Width of the target the march is presented into (px).
+    pub target_width: u32,
     pub sky: Sky,
     pub region: &'a Region,
     pub weather: &'a WeatherMap,
     pub settings: &'a Settings,
-    pub frame_index: u32,
+}
+
+/// The [`flags`] a march with these parameters runs with.
+fn march_flags(p: &MarchParams) -> u32 {
+    let sc = p.shortcuts;
+    [
+        (sc.empty_skip, flags::SKIP),
+        (sc.region_cull, flags::CULL),
+        (p.detail, flags::DETAIL),
+        (sc.jitter, flags::JITTER),
+        (sc.light_lod, flags::LIGHT_LOD),
+        (sc.clear_stride, flags::STRIDE),
+    ]
+    .into_iter()
+    .filter(|(on, _)| *on)
+    .fold(0, |acc, (_, bit)| acc | bit)
 }
 
 pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
@@ -123,16 +202,14 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     let sky = inp.sky;
     let r = inp.region;
 
-    let mut layer_base = [0.0f32; 4];
-    let mut layer_top = [0.0f32; 4];
-    let mut layer_on = [0.0f32; 4];
+    let mut u = FrameUniforms::default();
     let (mut lo, mut hi) = (f32::MAX, f32::MIN);
     let bands = disjoint_bands(&inp.weather.bands, s.layers_on);
     for (k, band) in bands.iter().enumerate() {
         if let Some((base, top)) = *band {
-            layer_base[k] = base;
-            layer_top[k] = top;
-            layer_on[k] = thickness_scale(top - base);
+            u.layer_base[k] = base;
+            u.layer_top[k] = top;
+            u.layer_scale[k] = thickness_scale(top - base);
             lo = lo.min(base);
             hi = hi.max(top);
         }
@@ -141,125 +218,78 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         // No layer to draw: an empty shell far above everything.
         (lo, hi) = (1.0e6, 1.0e6);
     }
-    layer_base[3] = lo;
-    layer_top[3] = hi;
-    layer_on[3] = s.coverage_mul;
+    u.shell_base_m = lo;
+    u.shell_top_m = hi;
+    u.coverage_mul = s.coverage_mul;
+    u.flags = march_flags(&p);
 
-    let mut flags = 0u32;
-    let sc = p.shortcuts;
-    if sc.empty_skip {
-        flags |= FLAG_SKIP;
-    }
-    if sc.region_cull {
-        flags |= FLAG_CULL;
-    }
-    if p.detail {
-        flags |= FLAG_DETAIL;
-    }
-    if sc.jitter {
-        flags |= FLAG_JITTER;
-    }
-    if sc.light_lod {
-        flags |= FLAG_LIGHT_LOD;
-    }
-    if sc.clear_stride {
-        flags |= FLAG_STRIDE;
-    }
-
-    let (cam_up, cam_fwd, cam_right, cam_upv, noise_origin, exposure_base);
+    let exposure_base;
     match inp.view {
         View::Perspective(cam) => {
             cam.validate()?;
             let b = cam.basis();
-            let tn = (cam.fov_deg.to_radians() * 0.5).tan();
-            cam_up = v4(b.up, cam.alt_m);
-            cam_fwd = v4(b.forward, tn);
-            cam_right = v4(b.right, inp.width as f64 / inp.height as f64);
-            cam_upv = v4(b.view_up, 0.0);
+            u.cam_up = v3(b.up);
+            u.cam_alt_m = cam.alt_m as f32;
+            u.cam_fwd = v3(b.forward);
+            u.tan_half_fov = (cam.fov_deg.to_radians() * 0.5).tan() as f32;
+            u.cam_right = v3(b.right);
+            u.aspect = (inp.width as f64 / inp.height as f64) as f32;
+            u.cam_view_up = v3(b.view_up);
             // The camera's position modulo the noise period, in f64: noise stays put as it flies.
-            let m = DVec3::new(
+            u.noise_origin = v3(DVec3::new(
                 b.position.x.rem_euclid(SHAPE_PERIOD_M),
                 b.position.y.rem_euclid(SHAPE_PERIOD_M),
                 b.position.z.rem_euclid(SHAPE_PERIOD_M),
-            );
-            noise_origin = v4(m, SHAPE_PERIOD_M);
+            ));
             exposure_base = auto_exposure(&sky);
         }
         View::TopDown => {
-            flags |= FLAG_NO_SKY;
+            u.flags |= flags::NO_SKY;
+            u.top_down = 1;
             let (lat, lon) = r.centre();
             let up = crate::sun::up_at(lat, lon);
-            cam_up = v4(up, hi as f64 + 1000.0);
-            cam_fwd = v4(-up, 1.0);
-            cam_right = v4(DVec3::X, 1.0);
-            cam_upv = v4(DVec3::Y, 1.0);
-            noise_origin = [0.0, 0.0, 0.0, SHAPE_PERIOD_M as f32];
+            u.cam_up = v3(up);
+            u.cam_alt_m = hi + 1000.0;
+            u.cam_fwd = v3(-up);
+            u.tan_half_fov = 1.0;
+            u.cam_right = v3(DVec3::X);
+            u.aspect = 1.0;
+            u.cam_view_up = v3(DVec3::Y);
             exposure_base = 1.0;
         }
     }
-    let sun_key = sky.sun_elevation_deg > -0.5;
-    let light = |l: &Light, w: f64| v4(l.dir, w);
-    let col = |l: &Light, w: f64| {
-        [
-            l.colour[0] as f32,
-            l.colour[1] as f32,
-            l.colour[2] as f32,
-            w as f32,
-        ]
-    };
+    u.shape_period_m = SHAPE_PERIOD_M as f32;
+    u.detail_period_m = DETAIL_PERIOD_M as f32;
+    u.sun_dir = v3(sky.sun.dir);
+    u.sun_is_key = u32::from(sky.sun_elevation_deg > -0.5);
+    u.sun_col = sky.sun.colour.map(|c| c as f32);
+    u.moon_dir = v3(sky.moon.dir);
+    u.moon_col = sky.moon.colour.map(|c| c as f32);
     let visibility = s.visibility_m.max(100.0);
-
-    Ok(FrameUniforms {
-        cam_up,
-        cam_fwd,
-        cam_right,
-        cam_upv,
-        noise_origin,
-        sun_dir: light(&sky.sun, if sun_key { 1.0 } else { 0.0 }),
-        sun_col: col(&sky.sun, sky.moon_phase),
-        moon_dir: light(&sky.moon, 0.0),
-        moon_col: col(&sky.moon, 0.0),
-        region: [
-            r.south as f32,
-            r.north as f32,
-            r.west as f32,
-            r.lon_span() as f32,
-        ],
-        region2: [
-            hi + 1000.0,
-            inp.weather.width as f32,
-            inp.weather.height as f32,
-            inp.weather.skip_m,
-        ],
-        layer_base,
-        layer_top,
-        layer_on,
-        light: [s.density_mul, s.extinction, s.hg_g, s.beer_clamp],
-        march: [
-            p.step_min_m,
-            p.step_growth,
-            p.step_max_m,
-            p.max_steps as f32,
-        ],
-        march2: [
-            p.light_steps as f32,
-            p.light_reach_m / (p.light_steps as f32 + 5.0),
-            p.early_exit,
-            flags as f32,
-        ],
-        misc: [
-            DETAIL_PERIOD_M as f32,
-            (exposure_base * 2f64.powf(s.exposure_ev)) as f32,
-            (3.912 / visibility) as f32,
-            1.0,
-        ],
-        size: [
-            inp.width as f32,
-            inp.height as f32,
-            inp.frame_index as f32,
-            (5.0 * visibility).min(2.0e6) as f32,
-        ],
-    })
+    u.exposure = (exposure_base * 2f64.powf(s.exposure_ev)) as f32;
+    u.haze_beta = (3.912 / visibility) as f32;
+    u.haze_cutoff_m = (5.0 * visibility).min(2.0e6) as f32;
+    u.region_south = r.south as f32;
+    u.region_north = r.north as f32;
+    u.region_west = r.west as f32;
+    u.region_lon_span = r.lon_span() as f32;
+    u.top_down_alt_m = hi + 1000.0;
+    u.skip_m = inp.weather.skip_m;
+    u.density_mul = s.density_mul;
+    u.extinction = s.extinction;
+    u.hg_g = s.hg_g;
+    u.beer_clamp = s.beer_clamp;
+    u.step_min_m = p.step_min_m;
+    u.step_growth = p.step_growth;
+    u.step_max_m = p.step_max_m;
+    u.max_steps = p.max_steps;
+    u.light_steps = p.light_steps;
+    u.light_step0_m = p.light_reach_m / (p.light_steps as f32 + 5.0);
+    u.early_exit = p.early_exit;
+    u.out_size = [inp.width as f32, inp.height as f32];
+    u.frame_index = s.frame_index as f32;
+    u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;
+    Ok(u)
 }
 
 #[cfg(test)]

@@ -1,14 +1,62 @@
 //! March stage: dispatches shaders/march.wgsl, one invocation per pixel, into the cloud texture
 //! (premultiplied linear radiance + opacity), counting the work it does.
+//!
+//! Its bindings come in three groups by lifetime: the device's (uniforms, noise, samplers,
+//! counters), the map's (weather and coarse textures) and the output size's (cloud texture,
+//! cut-ray mask), so a new map or size rebinds only its own group.
 
+use super::contract::{self, Binding, Resource};
+use super::frame::FrameUniforms;
 use super::gpu::Gpu;
 use super::noise::NoiseTextures;
 use super::shader;
 use super::weather::WeatherMap;
 
-/// Work counters, in the order march.wgsl writes them.
-pub const COUNTERS: usize = 9;
 pub const CLOUD_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+crate::gpu_struct! {
+    /// The march's work counters, as the GPU accumulates them (`counters` in march.wgsl, whose
+    /// `C_*` index constants follow these fields in order: checked by render::contract).
+    pub struct Counters as "Counters" {
+        pub rays: u32,
+        pub steps: u32,
+        pub density_samples: u32,
+        pub detail_samples: u32,
+        pub light_samples: u32,
+        pub outside_samples: u32,
+        pub skipped_steps: u32,
+        pub early_exits: u32,
+        pub cut_rays: u32,
+    }
+}
+
+/// Bind group numbers, by lifetime.
+pub const GROUP_DEVICE: u32 = 0;
+pub const GROUP_MAP: u32 = 1;
+pub const GROUP_TARGET: u32 = 2;
+
+/// Every binding of march.wgsl.
+pub const BINDINGS: &[Binding] = &[
+    contract::uniform::<FrameUniforms>(GROUP_DEVICE, 0),
+    b(GROUP_DEVICE, 1, Resource::Texture3d),
+    b(GROUP_DEVICE, 2, Resource::Texture3d),
+    b(GROUP_DEVICE, 3, Resource::Sampler),
+    b(GROUP_DEVICE, 4, Resource::Sampler),
+    b(GROUP_DEVICE, 5, Resource::StorageRw),
+    b(GROUP_MAP, 0, Resource::Texture2d { filterable: true }),
+    // The coarse map is R32Float: loaded, never filtered.
+    b(GROUP_MAP, 1, Resource::Texture2d { filterable: false }),
+    b(GROUP_TARGET, 0, Resource::StorageTexture(CLOUD_FORMAT, 2)),
+    b(GROUP_TARGET, 1, Resource::StorageRw),
+];
+
+const fn b(group: u32, binding: u32, resource: Resource) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource,
+    }
+}
 
 /// The per-pixel mask of rays cut short (1 bit a pixel) for a `width`×`height` march.
 pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
@@ -25,19 +73,31 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
 
 pub struct MarchPass {
     pipeline: wgpu::ComputePipeline,
+    layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
-    clamp_lin: wgpu::Sampler,
-    repeat_lin: wgpu::Sampler,
+    /// The device-lifetime bind group (uniforms, noise, samplers, counters).
+    device_bind: wgpu::BindGroup,
 }
 
 impl MarchPass {
-    pub fn new(gpu: &Gpu) -> MarchPass {
+    pub fn new(gpu: &Gpu, noise: &NoiseTextures) -> MarchPass {
         let dev = &gpu.device;
+        let stage = wgpu::ShaderStages::COMPUTE;
+        let layouts = [
+            contract::layout(dev, "march: device", BINDINGS, GROUP_DEVICE, stage),
+            contract::layout(dev, "march: map", BINDINGS, GROUP_MAP, stage),
+            contract::layout(dev, "march: target", BINDINGS, GROUP_TARGET, stage),
+        ];
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("march"),
+            bind_group_layouts: &[Some(&layouts[0]), Some(&layouts[1]), Some(&layouts[2])],
+            immediate_size: 0,
+        });
         let module = shader::module(dev, "march", shader::MARCH);
         let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("march"),
-            layout: None,
+            layout: Some(&layout),
             module: &module,
             entry_point: Some("main"),
             compilation_options: Default::default(),
@@ -45,13 +105,13 @@ impl MarchPass {
         });
         let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniforms"),
-            size: std::mem::size_of::<super::frame::FrameUniforms>() as u64,
+            size: std::mem::size_of::<FrameUniforms>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let counters = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("work counters"),
-            size: (COUNTERS * 4) as u64,
+            size: std::mem::size_of::<Counters>() as u64,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_DST
                 | wgpu::BufferUsages::COPY_SRC,
@@ -68,64 +128,74 @@ impl MarchPass {
                 ..Default::default()
             })
         };
+        let clamp_lin = sampler(wgpu::AddressMode::ClampToEdge, "clamp");
+        let repeat_lin = sampler(wgpu::AddressMode::Repeat, "repeat");
+        let (shape, detail) = (
+            noise.shape.create_view(&Default::default()),
+            noise.detail.create_view(&Default::default()),
+        );
+        use wgpu::BindingResource as R;
+        let device_bind = bind(
+            dev,
+            "march: device",
+            &layouts[0],
+            [
+                R::Buffer(uniforms.as_entire_buffer_binding()),
+                R::TextureView(&shape),
+                R::TextureView(&detail),
+                R::Sampler(&clamp_lin),
+                R::Sampler(&repeat_lin),
+                R::Buffer(counters.as_entire_buffer_binding()),
+            ],
+        );
         MarchPass {
             pipeline,
+            layouts,
             uniforms,
             counters,
-            clamp_lin: sampler(wgpu::AddressMode::ClampToEdge, "clamp"),
-            repeat_lin: sampler(wgpu::AddressMode::Repeat, "repeat"),
+            device_bind,
         }
     }
 
-    pub fn bind(
+    /// The map's bind group: made again only when the map's textures are.
+    pub fn bind_map(&self, gpu: &Gpu, weather: &WeatherMap) -> wgpu::BindGroup {
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (w, c) = (view(&weather.texture), view(&weather.coarse));
+        bind(
+            &gpu.device,
+            "march: map",
+            &self.layouts[1],
+            [
+                wgpu::BindingResource::TextureView(&w),
+                wgpu::BindingResource::TextureView(&c),
+            ],
+        )
+    }
+
+    /// The output's bind group: made again only when the output size changes.
+    pub fn bind_target(
         &self,
         gpu: &Gpu,
-        weather: &WeatherMap,
-        noise: &NoiseTextures,
         cloud: &wgpu::TextureView,
         cut_mask: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let (w, c, s, d) = (
-            view(&weather.texture),
-            view(&weather.coarse),
-            view(&noise.shape),
-            view(&noise.detail),
-        );
-        use wgpu::BindingResource as R;
-        let entries = [
-            R::Buffer(self.uniforms.as_entire_buffer_binding()),
-            R::TextureView(&w),
-            R::TextureView(&c),
-            R::TextureView(&s),
-            R::TextureView(&d),
-            R::Sampler(&self.clamp_lin),
-            R::Sampler(&self.repeat_lin),
-            R::TextureView(cloud),
-            R::Buffer(self.counters.as_entire_buffer_binding()),
-            R::Buffer(cut_mask.as_entire_buffer_binding()),
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .into_iter()
-            .enumerate()
-            .map(|(i, resource)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource,
-            })
-            .collect();
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("march"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        })
+        bind(
+            &gpu.device,
+            "march: target",
+            &self.layouts[2],
+            [
+                wgpu::BindingResource::TextureView(cloud),
+                wgpu::BindingResource::Buffer(cut_mask.as_entire_buffer_binding()),
+            ],
+        )
     }
 
     pub fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
-        bind: &wgpu::BindGroup,
-        width: u32,
-        height: u32,
+        map_bind: &wgpu::BindGroup,
+        target_bind: &wgpu::BindGroup,
+        (width, height): (u32, u32),
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -133,7 +203,31 @@ impl MarchPass {
             timestamp_writes: timestamps,
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, bind, &[]);
+        pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
+        pass.set_bind_group(GROUP_MAP, map_bind, &[]);
+        pass.set_bind_group(GROUP_TARGET, target_bind, &[]);
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
     }
+}
+
+/// A bind group whose entries are numbered in order from 0.
+pub fn bind<const N: usize>(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: [wgpu::BindingResource<'_>; N],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .into_iter()
+        .enumerate()
+        .map(|(i, resource)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource,
+        })
+        .collect();
+    dev.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
 }

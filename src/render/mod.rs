@@ -7,6 +7,7 @@
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
 pub mod camera;
+pub mod contract;
 pub mod frame;
 pub mod gpu;
 pub mod march;
@@ -15,6 +16,7 @@ pub mod present;
 pub mod preset;
 pub mod readback;
 pub mod shader;
+pub mod stats;
 pub mod weather;
 
 use std::time::Instant;
@@ -28,6 +30,7 @@ use stratus_ingest::meta::CloudMapMeta;
 pub use camera::{Camera, View};
 pub use gpu::Gpu;
 pub use preset::{MarchParams, Preset, Shortcuts};
+pub use stats::{FrameStats, Stats};
 
 use crate::sun::Sky;
 
@@ -49,8 +52,11 @@ pub enum RenderError {
     BadSetting(String),
     #[error("output size {0}×{1} is outside 1..={2} per side")]
     BadSize(u32, u32, u32),
+    /// An error the GPU reported (a validation error, a lost device).
     #[error("GPU error: {0}")]
     Gpu(String),
+    #[error("reading back from the GPU: {0}")]
+    Readback(String),
 }
 
 /// Everything about a frame except where the camera is.
@@ -152,23 +158,6 @@ impl Settings {
     }
 }
 
-/// Work the march did, from the GPU's counters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct Stats {
-    pub rays: u64,
-    pub steps: u64,
-    pub density_samples: u64,
-    pub detail_samples: u64,
-    pub light_samples: u64,
-    /// Density samples taken outside the map's region (zero with region culling on).
-    pub outside_samples: u64,
-    pub skipped_steps: u64,
-    pub early_exits: u64,
-    /// Rays the driver stopped before their march ended (Mesa llvmpipe's cap on a shader's loop
-    /// iterations; only `reference`'s long rays reach it). Zero on a GPU.
-    pub cut_rays: u64,
-}
-
 /// GPU time per pass from timestamp queries where the adapter has them, and wall time.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct Timings {
@@ -207,18 +196,47 @@ impl Output {
     }
 }
 
+/// Everything whose lifetime is the output size: made again only when the size changes.
 struct Targets {
     width: u32,
     height: u32,
     cloud: wgpu::Texture,
-    cloud_view: wgpu::TextureView,
     /// Headless output; made on first use.
     color: Option<wgpu::Texture>,
     march_bind: wgpu::BindGroup,
+    present_bind: wgpu::BindGroup,
     /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
     cut_mask: wgpu::Buffer,
-    /// Present bind groups, by index into `Renderer::presents`; made on first use.
-    present_binds: Vec<Option<wgpu::BindGroup>>,
+}
+
+impl Targets {
+    fn new(
+        gpu: &Gpu,
+        march: &march::MarchPass,
+        present: &present::PresentPass,
+        (width, height): (u32, u32),
+    ) -> Targets {
+        let cloud = texture_2d(
+            &gpu.device,
+            "cloud",
+            (width, height),
+            march::CLOUD_FORMAT,
+            wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+        );
+        let cloud_view = cloud.create_view(&Default::default());
+        let cut_mask = march::cut_mask_buffer(gpu, width, height);
+        Targets {
+            width,
+            height,
+            march_bind: march.bind_target(gpu, &cloud_view, &cut_mask),
+            present_bind: present.bind_target(gpu, &cloud_view),
+            cloud,
+            color: None,
+            cut_mask,
+        }
+    }
 }
 
 /// A single-level 2D texture.
@@ -245,111 +263,110 @@ fn texture_2d(
     })
 }
 
-struct Queries {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    period_ns: f64,
+/// How many GPU resources of each lifetime the renderer has made so far: a settings change
+/// makes none, a new map of the same size none, a new output size one set of targets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Made {
+    /// Render-target sets (cloud texture, cut mask and their bind groups).
+    pub targets: u32,
+    /// Map texture pairs (weather + coarse) and their bind group.
+    pub map_textures: u32,
+    /// Maps uploaded, into new or existing textures.
+    pub map_uploads: u32,
 }
 
-/// The renderer for one CloudMap on one GPU.
+/// The renderer for one CloudMap on one GPU. Resources are held by lifetime: the device's
+/// (noise, pipelines, uniforms), the map's (`weather`, `map_bind`) and the output size's
+/// (`targets`).
 pub struct Renderer {
     pub gpu: Gpu,
     pub meta: CloudMapMeta,
     pub weather: weather::WeatherMap,
-    noise: noise::NoiseTextures,
     march: march::MarchPass,
-    /// One present pipeline per target format (headless sRGB, the window's surface format).
-    presents: Vec<present::PresentPass>,
+    present: present::PresentPass,
+    map_bind: wgpu::BindGroup,
     targets: Option<Targets>,
-    queries: Option<Queries>,
+    timer: Option<stats::PassTimer>,
+    stats: stats::StatsReader,
+    made: Made,
 }
 
 /// Largest output side (and the limit the adapter sets, whichever is smaller).
 pub const MAX_OUTPUT_SIDE: u32 = 8192;
 
+/// The headless output's format.
+const HEADLESS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
 impl Renderer {
     pub fn new(gpu: Gpu, map: &CloudMap) -> Renderer {
         let noise = noise::NoiseTextures::generate(&gpu);
         let weather = weather::WeatherMap::upload(&gpu, map);
-        let march = march::MarchPass::new(&gpu);
-        let queries = gpu.timestamps.then(|| Queries {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("pass times"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 4,
-            }),
-            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("pass times"),
-                size: 32,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            period_ns: gpu.queue.get_timestamp_period() as f64,
-        });
+        let march = march::MarchPass::new(&gpu, &noise);
+        let present = present::PresentPass::new(&gpu, &march.uniforms);
+        let map_bind = march.bind_map(&gpu, &weather);
+        let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
+        let stats = stats::StatsReader::new(&gpu);
         Renderer {
-            gpu,
             meta: map.meta.clone(),
             weather,
-            noise,
             march,
-            presents: Vec::new(),
+            present,
+            map_bind,
             targets: None,
-            queries,
+            timer,
+            stats,
+            made: Made {
+                map_textures: 1,
+                map_uploads: 1,
+                targets: 0,
+            },
+            gpu,
         }
     }
 
-    /// Swap in another CloudMap (keeps the device, noise and pipelines).
+    /// Swap in another CloudMap. One of the same size goes into the textures already there
+    /// (every rh_cr slider move); the render targets stay whatever the map.
     pub fn set_map(&mut self, map: &CloudMap) {
-        self.weather = weather::WeatherMap::upload(&self.gpu, map);
+        if !self.weather.replace(&self.gpu, map) {
+            self.weather = weather::WeatherMap::upload(&self.gpu, map);
+            self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
+            self.made.map_textures += 1;
+        }
+        self.made.map_uploads += 1;
         self.meta = map.meta.clone();
-        self.targets = None;
     }
 
-    fn ensure_targets(&mut self, width: u32, height: u32) {
-        if self
+    /// The largest output side: [`MAX_OUTPUT_SIDE`] or the adapter's limit, whichever is less.
+    pub fn max_side(&self) -> u32 {
+        MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d)
+    }
+
+    fn check_size(&self, width: u32, height: u32) -> Result<(), RenderError> {
+        let max = self.max_side();
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(RenderError::BadSize(width, height, max));
+        }
+        Ok(())
+    }
+
+    /// What has been made so far (see [`Made`]).
+    pub fn made(&self) -> Made {
+        self.made
+    }
+
+    /// The targets for a `width`×`height` march, made when the size changes.
+    fn targets(&mut self, width: u32, height: u32) -> &mut Targets {
+        let fits = self
             .targets
             .as_ref()
-            .is_some_and(|t| t.width == width && t.height == height)
-        {
-            return;
+            .is_some_and(|t| t.width == width && t.height == height);
+        if !fits {
+            self.made.targets += 1;
+            self.targets = None;
         }
-        let cloud = texture_2d(
-            &self.gpu.device,
-            "cloud",
-            (width, height),
-            march::CLOUD_FORMAT,
-            wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-        );
-        let cloud_view = cloud.create_view(&Default::default());
-        let cut_mask = march::cut_mask_buffer(&self.gpu, width, height);
-        let march_bind = self.march.bind(
-            &self.gpu,
-            &self.weather,
-            &self.noise,
-            &cloud_view,
-            &cut_mask,
-        );
-        self.targets = Some(Targets {
-            width,
-            height,
-            cloud,
-            cloud_view,
-            color: None,
-            march_bind,
-            cut_mask,
-            present_binds: Vec::new(),
-        });
-    }
-
-    fn present_for(&mut self, format: wgpu::TextureFormat) -> usize {
-        if let Some(i) = self.presents.iter().position(|p| p.format == format) {
-            return i;
-        }
-        self.presents
-            .push(present::PresentPass::new(&self.gpu, format));
-        self.presents.len() - 1
+        let (gpu, march, present) = (&self.gpu, &self.march, &self.present);
+        self.targets
+            .get_or_insert_with(|| Targets::new(gpu, march, present, (width, height)))
     }
 
     /// Record one frame into `enc`: the march at `width`×`height`, then the present pass into
@@ -366,109 +383,87 @@ impl Renderer {
         target_format: wgpu::TextureFormat,
         target_width: u32,
     ) -> Result<(), RenderError> {
-        let max = MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d);
-        if width == 0 || height == 0 || width > max || height > max || target_width == 0 {
-            return Err(RenderError::BadSize(width, height, max));
+        self.check_size(width, height)?;
+        if target_width == 0 {
+            return Err(RenderError::BadSize(target_width, height, self.max_side()));
         }
         settings.validate()?;
         let sky = self.sky(view, settings)?;
-        let mut uniforms = frame::build(&frame::FrameInput {
+        let uniforms = frame::build(&frame::FrameInput {
             view: *view,
             width,
             height,
+            target_width,
             sky,
             region: &self.meta.region,
             weather: &self.weather,
             settings,
-            frame_index: settings.frame_index,
         })?;
-        uniforms.misc[3] = width as f32 / target_width as f32;
-        self.ensure_targets(width, height);
-        let pi = self.present_for(target_format);
-        let Some(t) = self.targets.as_mut() else {
-            return Err(RenderError::Gpu("no render targets".into()));
+        let pipeline = self.present.prepare(&self.gpu, target_format);
+        self.targets(width, height);
+        let Renderer {
+            gpu,
+            march,
+            present,
+            map_bind,
+            targets: Some(t),
+            timer,
+            ..
+        } = self
+        else {
+            unreachable!("targets were just made");
         };
-        if t.present_binds.len() <= pi {
-            t.present_binds.resize(pi + 1, None);
-        }
-        if t.present_binds[pi].is_none() {
-            let b = self.presents[pi].bind(&self.gpu, &self.march.uniforms, &t.cloud_view);
-            t.present_binds[pi] = Some(b);
-        }
-        let t = &*t;
-        let present = &self.presents[pi];
-        let Some(bind) = t.present_binds[pi].as_ref() else {
-            return Err(RenderError::Gpu("no present bind group".into()));
-        };
-        let gpu = &self.gpu;
         gpu.queue
-            .write_buffer(&self.march.uniforms, 0, bytemuck::bytes_of(&uniforms));
-        gpu.queue
-            .write_buffer(&self.march.counters, 0, &[0u8; march::COUNTERS * 4]);
+            .write_buffer(&march.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        gpu.queue.write_buffer(
+            &march.counters,
+            0,
+            bytemuck::bytes_of(&march::Counters::default()),
+        );
         enc.clear_buffer(&t.cut_mask, 0, None);
-        let q = self.queries.as_ref();
-        self.march.encode(
+        let timer = timer.as_ref();
+        march.encode(
             enc,
+            map_bind,
             &t.march_bind,
-            width,
-            height,
-            q.map(|q| wgpu::ComputePassTimestampWrites {
-                query_set: &q.set,
-                beginning_of_pass_write_index: Some(0),
-                end_of_pass_write_index: Some(1),
-            }),
+            (width, height),
+            timer.map(|q| q.compute_writes()),
         );
         present.encode(
             enc,
-            bind,
+            pipeline,
+            &t.present_bind,
             target,
-            q.map(|q| wgpu::RenderPassTimestampWrites {
-                query_set: &q.set,
-                beginning_of_pass_write_index: Some(2),
-                end_of_pass_write_index: Some(3),
-            }),
+            timer.map(|q| q.render_writes()),
         );
-        if let Some(q) = q {
-            enc.resolve_query_set(&q.set, 0..4, &q.resolve, 0);
+        if let Some(q) = timer {
+            q.resolve(enc);
         }
         Ok(())
     }
 
+    /// Queue a copy of the last encoded frame's counters and pass times, to be read by
+    /// [`Renderer::poll_stats`] once the GPU is done with it: the window never waits for them.
+    /// Call [`Renderer::after_submit`] once `enc` is submitted.
+    pub fn request_stats(&mut self, enc: &mut wgpu::CommandEncoder) {
+        self.stats
+            .record(enc, &self.march.counters, self.timer.as_ref());
+    }
+
+    /// Start mapping what [`Renderer::request_stats`] copied (call after the submit).
+    pub fn after_submit(&mut self) {
+        self.stats.after_submit();
+    }
+
+    /// The newest frame statistics the GPU has finished, without waiting; `None` when no newer
+    /// ones are ready since the last call.
+    pub fn poll_stats(&mut self) -> Option<FrameStats> {
+        self.stats.poll(&self.gpu, self.timer.as_ref())
+    }
+
     /// Read the work counters and pass times of the last submitted frame (waits for it).
-    pub fn read_stats(&self) -> Result<(Stats, Option<f64>, Option<f64>), RenderError> {
-        let gpu = &self.gpu;
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        let rb_count = readback::Pending::buffer(gpu, &mut enc, &self.march.counters);
-        let rb_time = self
-            .queries
-            .as_ref()
-            .map(|q| readback::Pending::buffer(gpu, &mut enc, &q.resolve));
-        gpu.queue.submit([enc.finish()]);
-        let counts = rb_count.finish(gpu)?;
-        let c: Vec<u64> = bytemuck::cast_slice::<u8, u32>(&counts)
-            .iter()
-            .map(|&v| v as u64)
-            .collect();
-        let stats = Stats {
-            rays: c[0],
-            steps: c[1],
-            density_samples: c[2],
-            detail_samples: c[3],
-            light_samples: c[4],
-            outside_samples: c[5],
-            skipped_steps: c[6],
-            early_exits: c[7],
-            cut_rays: c[8],
-        };
-        let (mut m, mut p) = (None, None);
-        if let (Some(rb), Some(q)) = (rb_time, self.queries.as_ref()) {
-            let raw = rb.finish(gpu)?;
-            let ts: &[u64] = bytemuck::cast_slice(&raw);
-            let ms = |a: u64, b: u64| (b > a).then(|| (b - a) as f64 * q.period_ns / 1e6);
-            m = ms(ts[0], ts[1]);
-            p = ms(ts[2], ts[3]);
-        }
-        Ok((stats, m, p))
+    pub fn read_stats(&self) -> Result<FrameStats, RenderError> {
+        stats::read_now(&self.gpu, &self.march.counters, self.timer.as_ref())
     }
 
     /// The sky for a view: computed from the time and place, or the override.
@@ -498,7 +493,7 @@ impl Renderer {
         height: u32,
         settings: &Settings,
     ) -> Result<Output, RenderError> {
-        const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+        self.check_size(width, height)?;
         let scope = self
             .gpu
             .device
@@ -507,20 +502,16 @@ impl Renderer {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         // The headless target lives with the cloud texture (same size).
         let color = {
-            self.ensure_targets(width.max(1), height.max(1));
-            let dev = &self.gpu.device;
-            let t = self
-                .targets
-                .as_mut()
-                .ok_or_else(|| RenderError::Gpu("no targets".into()))?;
+            let dev = self.gpu.device.clone();
+            let t = self.targets(width, height);
             let size = (t.width, t.height);
             t.color
                 .get_or_insert_with(|| {
                     texture_2d(
-                        dev,
+                        &dev,
                         "frame",
                         size,
-                        FORMAT,
+                        HEADLESS_FORMAT,
                         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
                     )
                 })
@@ -534,15 +525,14 @@ impl Renderer {
             height,
             settings,
             &color_view,
-            FORMAT,
+            HEADLESS_FORMAT,
             width,
         )?;
+        let cloud_tex = self.targets(width, height).cloud.clone();
+        let cut_mask = self.targets(width, height).cut_mask.clone();
         let gpu = &self.gpu;
-        let Some(t) = self.targets.as_ref() else {
-            return Err(RenderError::Gpu("no render targets".into()));
-        };
         let rb_color = readback::Pending::texture(gpu, &mut enc, &color, 4);
-        let rb_cloud = readback::Pending::texture(gpu, &mut enc, &t.cloud, 8);
+        let rb_cloud = readback::Pending::texture(gpu, &mut enc, &cloud_tex, 8);
         gpu.queue.submit([enc.finish()]);
         let pixels = rb_color.finish(gpu)?;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -554,7 +544,11 @@ impl Renderer {
             .chunks_exact(4)
             .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
             .collect();
-        let (stats, march_ms, present_ms) = self.read_stats()?;
+        let FrameStats {
+            stats,
+            march_ms,
+            present_ms,
+        } = self.read_stats()?;
         let mut cut = Vec::new();
         if stats.cut_rays > 0 {
             tracing::warn!(
@@ -563,7 +557,7 @@ impl Renderer {
                 stats.rays
             );
             let mut enc = gpu.device.create_command_encoder(&Default::default());
-            let rb = readback::Pending::buffer(gpu, &mut enc, &t.cut_mask);
+            let rb = readback::Pending::buffer(gpu, &mut enc, &cut_mask);
             gpu.queue.submit([enc.finish()]);
             let words: Vec<u32> = bytemuck::pod_collect_to_vec(&rb.finish(gpu)?);
             cut = (0..(width * height) as usize)

@@ -1,10 +1,11 @@
 //! Noise stage: generates the tileable shape (128³ RGBA) and detail (32³ RGB) noise textures
 //! on the GPU once at start-up (shaders/noise.wgsl), from a fixed seed.
 
-use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
+use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
+use super::march::bind;
 use super::shader;
 
 pub const SHAPE_SIZE: u32 = 128;
@@ -12,14 +13,27 @@ pub const DETAIL_SIZE: u32 = 32;
 /// The seed every Stratus noise texture is made from: the same clouds on every run.
 pub const SEED: u32 = 0x5715_7a75;
 
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct NoiseParams {
-    size: u32,
-    kind: u32,
-    seed: u32,
-    _pad: u32,
+crate::gpu_struct! {
+    /// What one noise dispatch makes (`NoiseParams` in noise.wgsl).
+    pub struct NoiseParams as "NoiseParams" {
+        /// Texels per side.
+        pub size: u32,
+        /// 0 shape, 1 detail.
+        pub kind: u32,
+        pub seed: u32,
+        pub _pad: u32,
+    }
 }
+
+/// Every binding of noise.wgsl.
+pub const BINDINGS: &[Binding] = &[
+    contract::uniform::<NoiseParams>(0, 0),
+    Binding {
+        group: 0,
+        binding: 1,
+        resource: Resource::StorageTexture(wgpu::TextureFormat::Rgba8Unorm, 3),
+    },
+];
 
 pub struct NoiseTextures {
     pub shape: wgpu::Texture,
@@ -30,9 +44,15 @@ impl NoiseTextures {
     pub fn generate(gpu: &Gpu) -> NoiseTextures {
         let dev = &gpu.device;
         let module = shader::module(dev, "noise", shader::NOISE);
+        let group = contract::layout(dev, "noise", BINDINGS, 0, wgpu::ShaderStages::COMPUTE);
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("noise"),
+            bind_group_layouts: &[Some(&group)],
+            immediate_size: 0,
+        });
         let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("noise"),
-            layout: None,
+            layout: Some(&layout),
             module: &module,
             entry_point: Some("main"),
             compilation_options: Default::default(),
@@ -64,20 +84,15 @@ impl NoiseTextures {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
             let view = tex.create_view(&Default::default());
-            let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some(label),
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&view),
-                    },
+            let bind = bind(
+                dev,
+                label,
+                &group,
+                [
+                    params.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&view),
                 ],
-            });
+            );
             let mut enc = dev.create_command_encoder(&Default::default());
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());

@@ -1,22 +1,77 @@
 //! Present stage: a full-screen triangle (shaders/present.wgsl) that composites the cloud
 //! texture over sky, Sun, Moon, stars and ground, and tone-maps into the target format.
 
+use super::contract::{self, Binding, Resource};
+use super::frame::FrameUniforms;
 use super::gpu::Gpu;
+use super::march::bind;
 use super::shader;
 
+/// Every binding of present.wgsl: the frame uniforms (the device's lifetime) and the march's
+/// cloud texture (the output size's).
+pub const BINDINGS: &[Binding] = &[
+    contract::uniform::<FrameUniforms>(0, 0),
+    Binding {
+        group: 1,
+        binding: 0,
+        resource: Resource::Texture2d { filterable: true },
+    },
+];
+
+/// A present pipeline made by [`PresentPass::prepare`]; only it makes them, so one always
+/// names a pipeline that exists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PipelineId(usize);
+
+/// The present pipelines (one per target format, sharing one layout) and the uniforms' bind
+/// group.
 pub struct PresentPass {
-    pipeline: wgpu::RenderPipeline,
-    pub format: wgpu::TextureFormat,
+    layouts: [wgpu::BindGroupLayout; 2],
+    layout: wgpu::PipelineLayout,
+    device_bind: wgpu::BindGroup,
+    pipelines: Vec<(wgpu::TextureFormat, wgpu::RenderPipeline)>,
 }
 
 impl PresentPass {
-    pub fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> PresentPass {
+    pub fn new(gpu: &Gpu, uniforms: &wgpu::Buffer) -> PresentPass {
+        let dev = &gpu.device;
+        let stage = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::VERTEX;
+        let layouts = [
+            contract::layout(dev, "present: device", BINDINGS, 0, stage),
+            contract::layout(dev, "present: target", BINDINGS, 1, stage),
+        ];
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("present"),
+            bind_group_layouts: &[Some(&layouts[0]), Some(&layouts[1])],
+            immediate_size: 0,
+        });
+        let device_bind = bind(
+            dev,
+            "present: device",
+            &layouts[0],
+            [wgpu::BindingResource::Buffer(
+                uniforms.as_entire_buffer_binding(),
+            )],
+        );
+        PresentPass {
+            layouts,
+            layout,
+            device_bind,
+            pipelines: Vec::new(),
+        }
+    }
+
+    /// The pipeline for a target format, made on first use.
+    pub fn prepare(&mut self, gpu: &Gpu, format: wgpu::TextureFormat) -> PipelineId {
+        if let Some(i) = self.pipelines.iter().position(|(f, _)| *f == format) {
+            return PipelineId(i);
+        }
         let dev = &gpu.device;
         let module = shader::module(dev, "present", shader::PRESENT);
         let encode = [("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 })];
         let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("present"),
-            layout: None,
+            layout: Some(&self.layout),
             vertex: wgpu::VertexState {
                 module: &module,
                 entry_point: Some("vs_main"),
@@ -38,38 +93,30 @@ impl PresentPass {
             multiview_mask: None,
             cache: None,
         });
-        PresentPass { pipeline, format }
+        self.pipelines.push((format, pipeline));
+        PipelineId(self.pipelines.len() - 1)
     }
 
-    pub fn bind(
-        &self,
-        gpu: &Gpu,
-        uniforms: &wgpu::Buffer,
-        cloud: &wgpu::TextureView,
-    ) -> wgpu::BindGroup {
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("present"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniforms.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(cloud),
-                },
-            ],
-        })
+    /// The cloud texture's bind group: made again only when the output size changes.
+    pub fn bind_target(&self, gpu: &Gpu, cloud: &wgpu::TextureView) -> wgpu::BindGroup {
+        bind(
+            &gpu.device,
+            "present: target",
+            &self.layouts[1],
+            [wgpu::BindingResource::TextureView(cloud)],
+        )
     }
 
+    /// Record the pass with a pipeline from [`PresentPass::prepare`].
     pub fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
-        bind: &wgpu::BindGroup,
+        pipeline: PipelineId,
+        target_bind: &wgpu::BindGroup,
         target: &wgpu::TextureView,
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) {
+        let pipeline = &self.pipelines[pipeline.0].1;
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("present"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -86,8 +133,9 @@ impl PresentPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, bind, &[]);
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.device_bind, &[]);
+        pass.set_bind_group(1, target_bind, &[]);
         pass.draw(0..3, 0..1);
     }
 }

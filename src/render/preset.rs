@@ -7,13 +7,24 @@
 use serde::{Deserialize, Serialize};
 
 /// A named quality level.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     Fast,
     Balanced,
     High,
     Reference,
+}
+
+impl std::str::FromStr for Preset {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Preset, String> {
+        Preset::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| format!("unknown preset \"{s}\" (fast, balanced, high, reference)"))
+    }
 }
 
 impl Preset {

@@ -66,6 +66,17 @@ impl Pending {
         }
     }
 
+    /// A whole buffer (MAP_READ) already filled by the caller's own copy.
+    pub fn whole(buffer: wgpu::Buffer) -> Pending {
+        let size = buffer.size() as usize;
+        Pending {
+            buffer,
+            row_bytes: size,
+            padded: size,
+            rows: 1,
+        }
+    }
+
     /// Wait for the copy and return the bytes without row padding.
     pub fn finish(self, gpu: &Gpu) -> Result<Vec<u8>, RenderError> {
         let slice = self.buffer.slice(..);
@@ -75,11 +86,11 @@ impl Pending {
         });
         gpu.wait()?;
         rx.recv()
-            .map_err(|e| RenderError::Gpu(e.to_string()))?
-            .map_err(|e| RenderError::Gpu(format!("readback: {e}")))?;
+            .map_err(|e| RenderError::Readback(e.to_string()))?
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
         let data = slice
             .get_mapped_range()
-            .map_err(|e| RenderError::Gpu(format!("readback: {e}")))?;
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
         let mut out = Vec::with_capacity(self.row_bytes * self.rows);
         for r in 0..self.rows {
             out.extend_from_slice(&data[r * self.padded..r * self.padded + self.row_bytes]);

@@ -4,8 +4,6 @@
 
 use rayon::prelude::*;
 use stratus_ingest::cloudmap::CloudMap;
-use stratus_ingest::meta::LayerKind;
-use wgpu::util::DeviceExt;
 
 use super::camera::EARTH_R;
 use super::gpu::Gpu;
@@ -94,8 +92,20 @@ pub fn coarse_map(texels: &[[f32; 4]], w: usize, h: usize) -> (Vec<f32>, usize, 
     (dilated, cw, ch)
 }
 
-impl WeatherMap {
-    pub fn upload(gpu: &Gpu, map: &CloudMap) -> WeatherMap {
+/// A map made ready for the GPU on the CPU: texels as f16, the coarse map, the bands.
+struct Prepared {
+    halfs: Vec<half::f16>,
+    w: usize,
+    h: usize,
+    cells: Vec<f32>,
+    cw: usize,
+    ch: usize,
+    skip_m: f32,
+    bands: [Option<Band>; 3],
+}
+
+impl Prepared {
+    fn new(gpu: &Gpu, map: &CloudMap) -> Prepared {
         let (mut w, mut h) = (map.width(), map.height());
         let mut texels: Vec<[f32; 4]> = map
             .texels
@@ -114,45 +124,7 @@ impl WeatherMap {
             .iter()
             .flat_map(|t| t.map(half::f16::from_f32))
             .collect();
-        let texture = gpu.device.create_texture_with_data(
-            &gpu.queue,
-            &wgpu::TextureDescriptor {
-                label: Some("weather map"),
-                size: wgpu::Extent3d {
-                    width: w as u32,
-                    height: h as u32,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba16Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            },
-            wgpu::util::TextureDataOrder::LayerMajor,
-            bytemuck::cast_slice(&halfs),
-        );
         let (cells, cw, ch) = coarse_map(&texels, w, h);
-        let coarse = gpu.device.create_texture_with_data(
-            &gpu.queue,
-            &wgpu::TextureDescriptor {
-                label: Some("coarse map"),
-                size: wgpu::Extent3d {
-                    width: cw as u32,
-                    height: ch as u32,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::R32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            },
-            wgpu::util::TextureDataOrder::LayerMajor,
-            bytemuck::cast_slice(&cells),
-        );
         let r = &map.meta.region;
         let deg_m = EARTH_R.to_radians();
         let max_abs_lat = r.south.abs().max(r.north.abs()).min(89.9);
@@ -162,27 +134,111 @@ impl WeatherMap {
         let skip_m = (0.95 * cell_lat_m.min(cell_lon_m)) as f32;
         let mut bands = [None; 3];
         for l in &map.meta.layers {
-            let slot = match l.kind {
-                LayerKind::Low => 0,
-                LayerKind::Middle => 1,
-                LayerKind::High => 2,
-            };
-            bands[slot] = Some(Band {
+            bands[l.kind.channel()] = Some(Band {
                 base_m: l.base_m as f32,
                 top_m: l.top_m as f32,
             });
         }
-        WeatherMap {
-            texture,
-            coarse,
-            width: w as u32,
-            height: h as u32,
+        Prepared {
+            halfs,
+            w,
+            h,
+            cells,
+            cw,
+            ch,
             skip_m,
             bands,
-            coarse_cells: cells,
-            coarse_w: cw,
-            coarse_h: ch,
         }
+    }
+}
+
+fn map_texture(
+    gpu: &Gpu,
+    label: &str,
+    (w, h): (usize, usize),
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w as u32,
+            height: h as u32,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
+    let (w, h) = (tex.width(), tex.height());
+    gpu.queue.write_texture(
+        tex.as_image_copy(),
+        bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(w * bytes_per_texel as u32),
+            rows_per_image: Some(h),
+        },
+        tex.size(),
+    );
+}
+
+impl WeatherMap {
+    /// Make the map's textures and upload it.
+    pub fn upload(gpu: &Gpu, map: &CloudMap) -> WeatherMap {
+        let p = Prepared::new(gpu, map);
+        let texture = map_texture(
+            gpu,
+            "weather map",
+            (p.w, p.h),
+            wgpu::TextureFormat::Rgba16Float,
+        );
+        let coarse = map_texture(
+            gpu,
+            "coarse map",
+            (p.cw, p.ch),
+            wgpu::TextureFormat::R32Float,
+        );
+        let mut m = WeatherMap {
+            texture,
+            coarse,
+            width: p.w as u32,
+            height: p.h as u32,
+            skip_m: 0.0,
+            bands: [None; 3],
+            coarse_cells: Vec::new(),
+            coarse_w: p.cw,
+            coarse_h: p.ch,
+        };
+        m.store(gpu, p);
+        m
+    }
+
+    /// Upload another map into these textures when it has their size (an rh_cr change, a
+    /// new forecast over the same region): nothing is made again. False, and nothing changed,
+    /// when the sizes differ.
+    pub fn replace(&mut self, gpu: &Gpu, map: &CloudMap) -> bool {
+        let p = Prepared::new(gpu, map);
+        if (p.w as u32, p.h as u32) != (self.width, self.height)
+            || (p.cw, p.ch) != (self.coarse_w, self.coarse_h)
+        {
+            return false;
+        }
+        self.store(gpu, p);
+        true
+    }
+
+    fn store(&mut self, gpu: &Gpu, p: Prepared) {
+        write(gpu, &self.texture, bytemuck::cast_slice(&p.halfs), 8);
+        write(gpu, &self.coarse, bytemuck::cast_slice(&p.cells), 4);
+        self.skip_m = p.skip_m;
+        self.bands = p.bands;
+        self.coarse_cells = p.cells;
     }
 }
 

@@ -1,0 +1,262 @@
+//! One window frame, step by step: move the pilot, build the panel and HUD, act on what the
+//! user asked, record the clouds and egui into the surface, submit, then take whatever frame
+//! statistics the GPU has finished (never waiting for them) and save a screenshot if asked.
+
+use std::path::PathBuf;
+
+use anyhow::anyhow;
+use chrono::Utc;
+
+use super::panel::{self, Actions, Hud};
+use super::{App, Running};
+use crate::render::readback::Pending;
+use crate::render::{Settings, View};
+
+/// What the UI step produced for the rest of the frame.
+struct UiFrame {
+    settings: Settings,
+    march: (u32, u32),
+    output: egui::FullOutput,
+    actions: Actions,
+}
+
+impl App {
+    pub(super) fn frame(&mut self) -> anyhow::Result<()> {
+        let frames_wanted = self.opts.frames;
+        let Some(r) = self.run.as_mut() else {
+            return Ok(());
+        };
+        let dt = r.clock.tick();
+        if !r.controls.paused && frames_wanted.is_none() {
+            r.pilot.step(&r.input.keys, dt);
+        }
+        let ui = r.build_ui();
+        r.act(&ui.actions, &mut self.opts);
+        let (tw, th) = (r.screen.config.width, r.screen.config.height);
+        if tw == 0 || th == 0 {
+            return Ok(());
+        }
+        let Some(surface) = r.acquire()? else {
+            return Ok(());
+        };
+        let target = surface.texture.create_view(&Default::default());
+        let device = r.renderer.gpu.device.clone();
+        let mut enc = device.create_command_encoder(&Default::default());
+        let view = View::Perspective(r.pilot.camera());
+        r.renderer.encode(
+            &mut enc,
+            &view,
+            ui.march.0,
+            ui.march.1,
+            &ui.settings,
+            &target,
+            r.screen.config.format,
+            tw,
+        )?;
+        r.renderer.request_stats(&mut enc);
+        let extra = r.draw_ui(&mut enc, &target, ui.output);
+        r.clock.frames += 1;
+        let last = frames_wanted.is_some_and(|n| r.clock.frames >= n);
+        let shot = r.queue_screenshot(&mut enc, &surface.texture, last, &self.opts.screenshot)?;
+        r.renderer
+            .gpu
+            .queue
+            .submit(extra.into_iter().chain([enc.finish()]));
+        r.renderer.after_submit();
+        if let Some(fs) = r.renderer.poll_stats() {
+            r.clock.gpu_time(fs.gpu_ms());
+        }
+        if let Some((pending, path)) = shot {
+            r.save_screenshot(pending, &path)?;
+        }
+        r.renderer.gpu.queue.present(surface);
+        Ok(())
+    }
+}
+
+impl Running {
+    /// The panel and HUD for this frame, and the settings and march size they give.
+    fn build_ui(&mut self) -> UiFrame {
+        let settings = self.controls.settings(self.valid_time, self.clock.frames);
+        let (tw, th) = (self.screen.config.width, self.screen.config.height);
+        let scale = self.controls.render_scale.clamp(0.05, 1.0);
+        let march = (
+            ((tw as f32 * scale) as u32).max(1),
+            ((th as f32 * scale) as u32).max(1),
+        );
+        self.march_size = march;
+        let hud = Hud {
+            lat: self.pilot.lat,
+            lon: self.pilot.lon,
+            alt_m: self.pilot.alt_m,
+            heading: self.pilot.heading,
+            speed: self.pilot.speed,
+            utc: settings.time,
+            fps: self.clock.fps(),
+            gpu_ms: self.clock.gpu_ms,
+            frame_ms: self.clock.frame_ms,
+            adapter: self.renderer.gpu.info.name.clone(),
+            march_size: march,
+        };
+        let input = self.ui.state.take_egui_input(&self.screen.window);
+        let mut actions = Actions::default();
+        let controls = &mut self.controls;
+        let output = self.ui.ctx.run_ui(input, |ui| {
+            actions = panel::panel(ui, controls);
+            panel::hud(ui, &hud);
+        });
+        UiFrame {
+            settings,
+            march,
+            output,
+            actions,
+        }
+    }
+
+    /// Teleport, re-derive the map for a new rh_cr, note a screenshot request.
+    fn act(&mut self, actions: &Actions, opts: &mut super::FlyOptions) {
+        if let Some((lat, lon, alt)) = actions.teleport {
+            self.pilot.lat = lat;
+            self.pilot.lon = lon;
+            self.pilot.alt_m = alt;
+        }
+        if actions.rh_cr_changed {
+            if let Some(plan) = opts.plan.as_mut() {
+                match plan.set_rh_cr(self.controls.rh_cr) {
+                    Ok(()) => {
+                        let map = plan.build();
+                        self.renderer.set_map(&map);
+                        opts.map = map;
+                    }
+                    Err(e) => self.controls.status = e.to_string(),
+                }
+            }
+        }
+        self.want_shot |= actions.screenshot;
+    }
+
+    /// The surface's next texture; `None` when this frame is to be skipped.
+    fn acquire(&mut self) -> anyhow::Result<Option<wgpu::SurfaceTexture>> {
+        Ok(match self.screen.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(f)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(f) => Some(f),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => None,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.screen
+                    .surface
+                    .configure(&self.renderer.gpu.device, &self.screen.config);
+                None
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(anyhow!("the window surface reported a validation error"));
+            }
+        })
+    }
+
+    /// Record egui's pass over the frame; returns egui's own command buffers.
+    fn draw_ui(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        out: egui::FullOutput,
+    ) -> Vec<wgpu::CommandBuffer> {
+        self.ui
+            .state
+            .handle_platform_output(&self.screen.window, out.platform_output);
+        let gpu = &self.renderer.gpu;
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [self.screen.config.width, self.screen.config.height],
+            pixels_per_point: out.pixels_per_point,
+        };
+        let prims = self.ui.ctx.tessellate(out.shapes, out.pixels_per_point);
+        for (id, deltas) in &out.textures_delta.set {
+            for delta in deltas {
+                self.ui
+                    .renderer
+                    .update_texture(&gpu.device, &gpu.queue, *id, delta);
+            }
+        }
+        let extra = self
+            .ui
+            .renderer
+            .update_buffers(&gpu.device, &gpu.queue, enc, &prims, &screen);
+        {
+            let pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("egui"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            let mut pass = pass.forget_lifetime();
+            self.ui.renderer.render(&mut pass, &prims, &screen);
+        }
+        for id in &out.textures_delta.free {
+            self.ui.renderer.free_texture(id);
+        }
+        extra
+    }
+
+    /// Queue a copy of the frame when a screenshot is due (F12, or the last `--frames` frame).
+    fn queue_screenshot(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        frame: &wgpu::Texture,
+        last: bool,
+        scripted_path: &Option<PathBuf>,
+    ) -> anyhow::Result<Option<(Pending, PathBuf)>> {
+        let scripted = last && scripted_path.is_some();
+        if !(scripted || self.want_shot) {
+            return Ok(None);
+        }
+        if !self.screen.can_read {
+            const NO: &str =
+                "this window surface cannot be read back for a screenshot; use `stratus render`";
+            if scripted {
+                return Err(anyhow!(NO));
+            }
+            // F12 in a live window: say so on the panel, keep flying.
+            self.controls.status = NO.into();
+            self.want_shot = false;
+            return Ok(None);
+        }
+        let path = match (scripted_path, last) {
+            (Some(p), true) => p.clone(),
+            _ => PathBuf::from(format!(
+                "stratus-{}.png",
+                Utc::now().format("%Y%m%d-%H%M%S")
+            )),
+        };
+        Ok(Some((
+            Pending::texture(&self.renderer.gpu, enc, frame, 4),
+            path,
+        )))
+    }
+
+    fn save_screenshot(&mut self, pending: Pending, path: &std::path::Path) -> anyhow::Result<()> {
+        let mut px = pending.finish(&self.renderer.gpu)?;
+        if matches!(
+            self.screen.config.format,
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        ) {
+            for c in px.chunks_exact_mut(4) {
+                c.swap(0, 2);
+            }
+        }
+        let (w, h) = (self.screen.config.width, self.screen.config.height);
+        let img = image::RgbaImage::from_raw(w, h, px).ok_or_else(|| anyhow!("screenshot size"))?;
+        crate::picture::save_png(path, &img)?;
+        self.controls.status = format!("saved {}", path.display());
+        self.want_shot = false;
+        Ok(())
+    }
+}

@@ -1,0 +1,224 @@
+//! Options and parsers the commands share: how to look (preset, time, Sun, layers), how to
+//! ingest, numbers and times on the command line, progress bars.
+
+use std::path::Path;
+
+use anyhow::Context;
+use chrono::{DateTime, Utc};
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use stratus::render::{gpu, Camera, Gpu, Preset, Settings};
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
+use stratus_ingest::meta::LayerKind;
+use stratus_ingest::pipeline::{validate_rh_cr, IngestOptions, Plan};
+use stratus_ingest::region::{parse_size, Region};
+use stratus_ingest::spline::Interp;
+
+/// Look and light options shared by every command that renders.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LookOpts {
+    /// Quality preset: fast, balanced, high or reference.
+    #[arg(long, default_value = "balanced")]
+    pub preset: Preset,
+    /// UTC time for the Sun and Moon (ISO 8601, e.g. 2011-01-15T06:00:00Z); default: the map's valid time.
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Sun direction E,N,U in the camera's local frame, instead of the computed one.
+    #[arg(long, allow_hyphen_values = true)]
+    pub sun_dir: Option<String>,
+    /// Exposure correction in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f64,
+    /// Meteorological visibility in km (aerial haze).
+    #[arg(long, default_value_t = 60.0)]
+    pub visibility_km: f64,
+    /// Coverage multiplier.
+    #[arg(long, default_value_t = 1.0)]
+    pub coverage: f32,
+    /// Density multiplier.
+    #[arg(long, default_value_t = 1.0)]
+    pub density: f32,
+    /// Layers to draw, e.g. low,middle,high.
+    #[arg(long, default_value = "low,middle,high")]
+    pub layers: String,
+    /// Adapter to use: any part of its name (see the line printed on start).
+    #[arg(long)]
+    pub adapter: Option<String>,
+}
+
+/// Parse a comma-separated list of exactly `n` numbers.
+pub fn parse_numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
+    let v: Result<Vec<f64>, _> = s.split(',').map(|p| p.trim().parse::<f64>()).collect();
+    match v {
+        Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
+        _ => anyhow::bail!("{what} \"{s}\" must be {n} comma-separated numbers"),
+    }
+}
+
+/// A time on the command line: ISO 8601 with or without the zone (then UTC).
+pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
+    DateTime::parse_from_rfc3339(s)
+        .map(|d| d.with_timezone(&Utc))
+        .or_else(|_| {
+            chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M:%S").map(|n| n.and_utc())
+        })
+        .or_else(|_| {
+            chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc())
+        })
+        .with_context(|| format!("time \"{s}\" is not ISO 8601 (e.g. 2011-01-15T06:00:00Z)"))
+}
+
+impl LookOpts {
+    pub fn settings(&self, map: &CloudMap) -> anyhow::Result<Settings> {
+        let time = match &self.time {
+            Some(t) => parse_time(t)?,
+            None => stratus::sun::valid_time(&map.meta)
+                .context("the map has no valid time: give --time")?,
+        };
+        let mut s = Settings::new(self.preset, time);
+        if let Some(d) = &self.sun_dir {
+            let v = parse_numbers(d, 3, "--sun-dir")?;
+            s.sun_override = Some(DVec3::new(v[0], v[1], v[2]));
+        }
+        s.exposure_ev = self.exposure;
+        s.visibility_m = self.visibility_km * 1000.0;
+        s.coverage_mul = self.coverage;
+        s.density_mul = self.density;
+        s.layers_on = [false; 3];
+        for name in self
+            .layers
+            .split(',')
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+        {
+            let kind = LayerKind::ALL
+                .into_iter()
+                .find(|k| k.name() == name || (name == "mid" && *k == LayerKind::Middle));
+            let kind = kind.ok_or_else(|| {
+                anyhow::anyhow!("--layers: unknown layer \"{name}\" (low, middle, high)")
+            })?;
+            s.layers_on[kind.channel()] = true;
+        }
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Open the GPU, saying which adapter it is.
+    pub fn gpu(&self) -> anyhow::Result<Gpu> {
+        let gpu = Gpu::new(self.adapter.as_deref())?;
+        eprintln!(
+            "stratus: adapter {}{}",
+            gpu::describe(&gpu.info),
+            if gpu.is_cpu() {
+                " — a CPU driver: expect seconds per frame"
+            } else {
+                ""
+            }
+        );
+        Ok(gpu)
+    }
+}
+
+pub fn parse_camera(s: &str, heading: f64, pitch: f64, fov: f64) -> anyhow::Result<Camera> {
+    let v = parse_numbers(s, 3, "--camera")?;
+    let mut cam = Camera::new(v[0], v[1], v[2], heading, pitch);
+    cam.fov_deg = fov;
+    cam.validate()?;
+    Ok(cam)
+}
+
+/// How to turn a forecast file into a CloudMap.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IngestOpts {
+    /// Region as S,N,W,E in degrees (longitudes -180..180 or 0..360; W > E crosses the date line).
+    #[arg(long, allow_hyphen_values = true)]
+    pub region: Option<String>,
+    /// Output size WxH in pixels (each side 1..=16384).
+    #[arg(long, default_value = "1024x1024")]
+    pub size: String,
+    /// One isobaric level in hPa (the paper's case); default: all levels folded into layers.
+    #[arg(long)]
+    pub level: Option<f64>,
+    /// Highest level (lowest pressure, hPa) folded into the layers when --level is not given.
+    #[arg(long, default_value_t = DEFAULT_TOP_HPA)]
+    pub top_hpa: f64,
+    /// Critical humidity for every layer (fraction, 0 ≤ x < 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub rh_cr: Option<f64>,
+    #[arg(long, default_value_t = LayerKind::Low.default_rh_cr())]
+    pub rh_cr_low: f64,
+    #[arg(long, default_value_t = LayerKind::Middle.default_rh_cr())]
+    pub rh_cr_mid: f64,
+    #[arg(long, default_value_t = LayerKind::High.default_rh_cr())]
+    pub rh_cr_high: f64,
+    /// spline | catmull-rom | bilinear | nearest.
+    #[arg(long, default_value = "spline")]
+    pub interp: Interp,
+}
+
+impl IngestOpts {
+    pub fn options(&self) -> anyhow::Result<IngestOptions> {
+        let region = Region::parse(
+            self.region
+                .as_deref()
+                .ok_or_else(|| anyhow::anyhow!("--region S,N,W,E is required to ingest"))?,
+        )?;
+        self.options_over(region, parse_size(&self.size)?)
+    }
+
+    /// These options over a region and size given by the caller (a file dropped on the window).
+    pub fn options_over(
+        &self,
+        region: Region,
+        (width, height): (u32, u32),
+    ) -> anyhow::Result<IngestOptions> {
+        let rh_cr = match self.rh_cr {
+            Some(x) => [x; 3],
+            None => [self.rh_cr_low, self.rh_cr_mid, self.rh_cr_high],
+        };
+        for x in rh_cr {
+            validate_rh_cr(x)?;
+        }
+        Ok(IngestOptions {
+            region,
+            width,
+            height,
+            rh_cr,
+            interp: self.interp,
+        })
+    }
+
+    fn select(&self) -> LevelSelect {
+        match self.level {
+            Some(p) => LevelSelect::One(p),
+            None => LevelSelect::AllBelow(self.top_hpa),
+        }
+    }
+
+    /// Validate the options, read the file and prepare the resampling.
+    pub fn plan(&self, file: &Path) -> anyhow::Result<Plan> {
+        let opts = self.options()?;
+        let fc = Forecast::open(file, self.select())?;
+        Ok(Plan::new(&fc, &opts)?)
+    }
+
+    /// Like [`IngestOpts::plan`] over a given region and size.
+    pub fn plan_over(&self, file: &Path, region: Region, size: (u32, u32)) -> anyhow::Result<Plan> {
+        let opts = self.options_over(region, size)?;
+        let fc = Forecast::open(file, self.select())?;
+        Ok(Plan::new(&fc, &opts)?)
+    }
+}
+
+/// A bar on stderr for long work; hidden when stderr is not a terminal.
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}

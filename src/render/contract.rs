@@ -1,0 +1,530 @@
+//! The contract between the Rust side and the WGSL side of the renderer: every struct both sides
+//! read ([`gpu_struct!`]), every constant both sides use ([`SHARED_CONSTANTS`]) and every binding
+//! ([`Binding`] tables per stage). The WGSL files stay plain, readable WGSL; the test
+//! `tests::wgsl_matches_rust` parses each stage with naga and fails on any difference in a
+//! struct's field names, offsets, sizes or types, a binding's number or type, or a constant's
+//! value. Adding a uniform is one field here and one in the WGSL struct, and the test says
+//! when the two disagree.
+
+use super::frame::{flags, FrameUniforms, SUN_INTENSITY};
+use super::march::Counters;
+
+/// One field of a struct shared with WGSL, as the Rust compiler laid it out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Field {
+    pub name: &'static str,
+    pub offset: usize,
+    pub size: usize,
+    /// The WGSL type it must have.
+    pub wgsl: &'static str,
+}
+
+/// A `#[repr(C)]` struct the GPU reads with the same layout.
+pub trait GpuStruct: bytemuck::Pod {
+    /// Its name in WGSL.
+    const WGSL_NAME: &'static str;
+    fn fields() -> Vec<Field>;
+}
+
+/// Rust types that stand for one WGSL type.
+pub trait WgslType {
+    const WGSL: &'static str;
+}
+impl WgslType for f32 {
+    const WGSL: &'static str = "f32";
+}
+impl WgslType for u32 {
+    const WGSL: &'static str = "u32";
+}
+impl WgslType for [f32; 2] {
+    const WGSL: &'static str = "vec2<f32>";
+}
+impl WgslType for [f32; 3] {
+    const WGSL: &'static str = "vec3<f32>";
+}
+impl WgslType for [f32; 4] {
+    const WGSL: &'static str = "vec4<f32>";
+}
+
+/// Defines a `#[repr(C)]`, `Pod` struct whose layout the WGSL struct `$wgsl` must match.
+/// Field types must implement [`WgslType`]; WGSL's alignment rules (a `vec3` starts on 16
+/// bytes) are the writer's to keep, and the test catches any slip.
+#[macro_export]
+macro_rules! gpu_struct {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident as $wgsl:literal {
+            $( $(#[$fmeta:meta])* pub $field:ident : $ty:ty, )*
+        }
+    ) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+        pub struct $name {
+            $( $(#[$fmeta])* pub $field: $ty, )*
+        }
+
+        impl $crate::render::contract::GpuStruct for $name {
+            const WGSL_NAME: &'static str = $wgsl;
+            fn fields() -> Vec<$crate::render::contract::Field> {
+                vec![$(
+                    $crate::render::contract::Field {
+                        name: stringify!($field),
+                        offset: std::mem::offset_of!($name, $field),
+                        size: std::mem::size_of::<$ty>(),
+                        wgsl: <$ty as $crate::render::contract::WgslType>::WGSL,
+                    },
+                )*]
+            }
+        }
+    };
+}
+
+/// A constant both sides use, by its WGSL name.
+#[derive(Clone, Copy, Debug)]
+pub enum Shared {
+    F32(f32),
+    U32(u32),
+}
+
+/// Every constant the WGSL side must declare with this value wherever it declares it.
+pub fn shared_constants() -> Vec<(&'static str, Shared)> {
+    use Shared::*;
+    let mut v = vec![
+        ("EARTH_R", F32(super::camera::EARTH_R as f32)),
+        ("SUN_I", F32(SUN_INTENSITY as f32)),
+        ("FLAG_SKIP", U32(flags::SKIP)),
+        ("FLAG_CULL", U32(flags::CULL)),
+        ("FLAG_DETAIL", U32(flags::DETAIL)),
+        ("FLAG_JITTER", U32(flags::JITTER)),
+        ("FLAG_NO_SKY", U32(flags::NO_SKY)),
+        ("FLAG_LIGHT_LOD", U32(flags::LIGHT_LOD)),
+        ("FLAG_STRIDE", U32(flags::STRIDE)),
+        (
+            "N_COUNTERS",
+            U32((std::mem::size_of::<Counters>() / 4) as u32),
+        ),
+    ];
+    // One index constant per counter, named after its field: `C_RAYS` is `Counters::rays`.
+    for f in Counters::fields() {
+        v.push((counter_const(f.name), U32((f.offset / 4) as u32)));
+    }
+    v
+}
+
+fn counter_const(field: &str) -> &'static str {
+    match field {
+        "rays" => "C_RAYS",
+        "steps" => "C_STEPS",
+        "density_samples" => "C_DENSITY",
+        "detail_samples" => "C_DETAIL",
+        "light_samples" => "C_LIGHT",
+        "outside_samples" => "C_OUTSIDE",
+        "skipped_steps" => "C_SKIPPED",
+        "early_exits" => "C_EARLY",
+        "cut_rays" => "C_CUT",
+        _ => "C_UNKNOWN",
+    }
+}
+
+/// What a binding holds, in the words both sides can be reduced to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Resource {
+    /// A uniform buffer holding the named shared struct, of this size.
+    Uniform(&'static str, u64),
+    /// A read-write storage buffer.
+    StorageRw,
+    /// A sampled float 2D texture; `filterable: false` for formats such as R32Float that are
+    /// only loaded (WGSL does not say which, so the test compares the rest).
+    Texture2d {
+        filterable: bool,
+    },
+    Texture3d,
+    /// A write-only storage texture of this format and dimension (2 or 3).
+    StorageTexture(wgpu::TextureFormat, u8),
+    Sampler,
+}
+
+/// One binding of a stage: group, number and what it holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Binding {
+    pub group: u32,
+    pub binding: u32,
+    pub resource: Resource,
+}
+
+impl Binding {
+    /// The wgpu layout entry for this binding, visible to `stages`.
+    pub fn layout_entry(&self, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        use wgpu::BindingType as T;
+        let ty = match self.resource {
+            Resource::Uniform(_, size) => T::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(size),
+            },
+            Resource::StorageRw => T::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            Resource::Texture2d { filterable } => T::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            Resource::Texture3d => T::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D3,
+                multisampled: false,
+            },
+            Resource::StorageTexture(format, dim) => T::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format,
+                view_dimension: if dim == 3 {
+                    wgpu::TextureViewDimension::D3
+                } else {
+                    wgpu::TextureViewDimension::D2
+                },
+            },
+            Resource::Sampler => T::Sampler(wgpu::SamplerBindingType::Filtering),
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding: self.binding,
+            visibility: stages,
+            ty,
+            count: None,
+        }
+    }
+}
+
+/// A bind group layout for the bindings of `group` in `table`.
+pub fn layout(
+    device: &wgpu::Device,
+    label: &str,
+    table: &[Binding],
+    group: u32,
+    stages: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = table
+        .iter()
+        .filter(|b| b.group == group)
+        .map(|b| b.layout_entry(stages))
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// The uniform binding of a shared struct.
+pub const fn uniform<T: GpuStruct>(group: u32, binding: u32) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource: Resource::Uniform(T::WGSL_NAME, std::mem::size_of::<T>() as u64),
+    }
+}
+
+/// The structs shared by every stage that declares them.
+pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
+    use super::noise::NoiseParams;
+    vec![
+        (
+            FrameUniforms::WGSL_NAME,
+            FrameUniforms::fields(),
+            std::mem::size_of::<FrameUniforms>(),
+        ),
+        (
+            NoiseParams::WGSL_NAME,
+            NoiseParams::fields(),
+            std::mem::size_of::<NoiseParams>(),
+        ),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use naga::{ImageClass, ImageDimension, ScalarKind, TypeInner};
+
+    fn parse(name: &str, src: &str) -> naga::Module {
+        naga::front::wgsl::parse_str(src)
+            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)))
+    }
+
+    fn type_name(module: &naga::Module, ty: naga::Handle<naga::Type>) -> String {
+        let scalar = |s: naga::Scalar| match (s.kind, s.width) {
+            (ScalarKind::Float, 4) => "f32".to_string(),
+            (ScalarKind::Uint, 4) => "u32".to_string(),
+            (ScalarKind::Sint, 4) => "i32".to_string(),
+            other => format!("{other:?}"),
+        };
+        match &module.types[ty].inner {
+            TypeInner::Scalar(s) => scalar(*s),
+            TypeInner::Vector { size, scalar: s } => format!("vec{}<{}>", *size as u8, scalar(*s)),
+            other => format!("{other:?}"),
+        }
+    }
+
+    /// Differences between a WGSL struct and the Rust struct it must match.
+    fn struct_diffs(
+        module: &naga::Module,
+        stage: &str,
+        name: &str,
+        fields: &[Field],
+        size: usize,
+    ) -> Vec<String> {
+        let Some((_, ty)) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+        else {
+            return vec![];
+        };
+        let TypeInner::Struct { members, span } = &ty.inner else {
+            return vec![format!("{stage}: {name} is not a struct")];
+        };
+        let mut d = Vec::new();
+        // A uniform struct's size is rounded up to its 16-byte alignment.
+        if *span as usize != size {
+            d.push(format!(
+                "{stage}: {name} is {span} bytes in WGSL, {size} in Rust"
+            ));
+        }
+        if members.len() != fields.len() {
+            d.push(format!(
+                "{stage}: {name} has {} fields in WGSL, {} in Rust",
+                members.len(),
+                fields.len()
+            ));
+        }
+        for (m, f) in members.iter().zip(fields) {
+            let mname = m.name.as_deref().unwrap_or("?");
+            let wgsl_ty = type_name(module, m.ty);
+            let wsize = module.types[m.ty].inner.size(module.to_ctx()) as usize;
+            if mname != f.name
+                || m.offset as usize != f.offset
+                || wsize != f.size
+                || wgsl_ty != f.wgsl
+            {
+                d.push(format!(
+                    "{stage}: {name}.{mname}: {wgsl_ty} at {} ({wsize} B) in WGSL, but Rust has {}: {} at {} ({} B)",
+                    m.offset, f.name, f.wgsl, f.offset, f.size
+                ));
+            }
+        }
+        d
+    }
+
+    fn constant_diffs(module: &naga::Module, stage: &str) -> Vec<String> {
+        let mut d = Vec::new();
+        for (name, want) in shared_constants() {
+            let Some((_, c)) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+            else {
+                continue;
+            };
+            let got = &module.global_expressions[c.init];
+            let ok = match (got, want) {
+                (naga::Expression::Literal(naga::Literal::F32(v)), Shared::F32(w)) => *v == w,
+                (naga::Expression::Literal(naga::Literal::U32(v)), Shared::U32(w)) => *v == w,
+                _ => false,
+            };
+            if !ok {
+                d.push(format!(
+                    "{stage}: const {name} is {got:?}, Rust has {want:?}"
+                ));
+            }
+        }
+        d
+    }
+
+    /// A WGSL resource binding reduced to a [`Resource`].
+    fn resource_of(module: &naga::Module, var: &naga::GlobalVariable) -> Option<Resource> {
+        let inner = &module.types[var.ty].inner;
+        Some(match (var.space, inner) {
+            (naga::AddressSpace::Uniform, _) => Resource::Uniform(
+                module.types[var.ty].name.as_deref().map_or("?", |n| {
+                    shared_structs()
+                        .into_iter()
+                        .find(|s| s.0 == n)
+                        .map_or("?", |s| s.0)
+                }),
+                inner.size(module.to_ctx()) as u64,
+            ),
+            (naga::AddressSpace::Storage { access }, _)
+                if access.contains(naga::StorageAccess::STORE) =>
+            {
+                Resource::StorageRw
+            }
+            (
+                naga::AddressSpace::Handle,
+                TypeInner::Image {
+                    dim,
+                    arrayed: false,
+                    class,
+                },
+            ) => match (dim, class) {
+                (ImageDimension::D2, ImageClass::Sampled { multi: false, .. }) => {
+                    Resource::Texture2d { filterable: true }
+                }
+                (ImageDimension::D3, ImageClass::Sampled { multi: false, .. }) => {
+                    Resource::Texture3d
+                }
+                (d, ImageClass::Storage { format, .. }) => {
+                    let f = match format {
+                        naga::StorageFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+                        naga::StorageFormat::Rgba8Unorm => wgpu::TextureFormat::Rgba8Unorm,
+                        _ => return None,
+                    };
+                    Resource::StorageTexture(f, if *d == ImageDimension::D3 { 3 } else { 2 })
+                }
+                _ => return None,
+            },
+            (naga::AddressSpace::Handle, TypeInner::Sampler { comparison: false }) => {
+                Resource::Sampler
+            }
+            _ => return None,
+        })
+    }
+
+    /// What WGSL can tell of a resource: not whether a texture is filterable.
+    fn comparable(r: Resource) -> Resource {
+        match r {
+            Resource::Texture2d { .. } => Resource::Texture2d { filterable: true },
+            other => other,
+        }
+    }
+
+    fn binding_diffs(module: &naga::Module, stage: &str, table: &[Binding]) -> Vec<String> {
+        let mut d = Vec::new();
+        let mut seen = Vec::new();
+        for (_, var) in module.global_variables.iter() {
+            let Some(rb) = &var.binding else { continue };
+            let name = var.name.as_deref().unwrap_or("?");
+            let got = resource_of(module, var);
+            seen.push((rb.group, rb.binding));
+            match table
+                .iter()
+                .find(|b| b.group == rb.group && b.binding == rb.binding)
+            {
+                None => d.push(format!(
+                    "{stage}: `{name}` at group {} binding {} has no Rust layout entry",
+                    rb.group, rb.binding
+                )),
+                Some(b) if Some(comparable(b.resource)) != got => d.push(format!(
+                    "{stage}: `{name}` at group {} binding {} is {got:?} in WGSL, {:?} in Rust",
+                    rb.group, rb.binding, b.resource
+                )),
+                Some(_) => {}
+            }
+        }
+        for b in table {
+            if !seen.contains(&(b.group, b.binding)) {
+                d.push(format!(
+                    "{stage}: Rust lays out group {} binding {} ({:?}), WGSL declares none",
+                    b.group, b.binding, b.resource
+                ));
+            }
+        }
+        d
+    }
+
+    fn all_diffs(stage: &str, src: &str, table: &[Binding]) -> Vec<String> {
+        let module = parse(stage, src);
+        let mut d = Vec::new();
+        for (name, fields, size) in shared_structs() {
+            d.extend(struct_diffs(&module, stage, name, &fields, size));
+        }
+        d.extend(constant_diffs(&module, stage));
+        d.extend(binding_diffs(&module, stage, table));
+        d
+    }
+
+    fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
+        use super::super::{march, noise, present, shader};
+        vec![
+            ("noise", shader::NOISE, noise::BINDINGS),
+            ("march", shader::MARCH, march::BINDINGS),
+            ("present", shader::PRESENT, present::BINDINGS),
+        ]
+    }
+
+    #[test]
+    fn wgsl_matches_rust() {
+        let mut d = Vec::new();
+        for (stage, src, table) in stages() {
+            d.extend(all_diffs(stage, src, table));
+        }
+        assert!(
+            d.is_empty(),
+            "the WGSL and Rust sides disagree:\n{}",
+            d.join("\n")
+        );
+    }
+
+    /// Every shared constant is declared by at least one stage, and `Frame` by every stage
+    /// that reads the frame: a renamed constant cannot slip out of the check.
+    #[test]
+    fn every_shared_item_is_checked_somewhere() {
+        let modules: Vec<naga::Module> = stages().iter().map(|(n, s, _)| parse(n, s)).collect();
+        for (name, _) in shared_constants() {
+            let found = modules.iter().any(|m| {
+                m.constants
+                    .iter()
+                    .any(|(_, c)| c.name.as_deref() == Some(name))
+            });
+            assert!(found, "no stage declares the shared constant {name}");
+        }
+        for m in &modules[1..] {
+            assert!(m
+                .types
+                .iter()
+                .any(|(_, t)| t.name.as_deref() == Some(FrameUniforms::WGSL_NAME)));
+        }
+    }
+
+    /// The check itself can fail: each kind of slip is caught.
+    #[test]
+    fn the_check_catches_each_kind_of_slip() {
+        let (stage, src, table) = stages()[1];
+        assert!(all_diffs(stage, src, table).is_empty());
+        let slips = [
+            // A renamed field.
+            ("    exposure: f32,", "    exposure_ev: f32,"),
+            // Two fields swapped (same types: only the names betray it).
+            (
+                "    step_min_m: f32,\n    step_growth: f32,",
+                "    step_growth: f32,\n    step_min_m: f32,",
+            ),
+            // A type changed (u32 flags read as f32).
+            ("    flags: u32,", "    flags: f32,"),
+            // A shared constant changed.
+            ("const SUN_I: f32 = 20.0;", "const SUN_I: f32 = 21.0;"),
+            (
+                "const FLAG_STRIDE: u32 = 64u;",
+                "const FLAG_STRIDE: u32 = 128u;",
+            ),
+            ("const C_CUT: u32 = 8u;", "const C_CUT: u32 = 7u;"),
+            // A binding moved.
+            (
+                "@group(1) @binding(1) var coarse",
+                "@group(1) @binding(2) var coarse",
+            ),
+        ];
+        for (from, to) in slips {
+            assert!(
+                src.contains(from),
+                "the slip test's pattern is gone: {from}"
+            );
+            let changed = src.replacen(from, to, 1);
+            assert!(
+                !all_diffs(stage, &changed, table).is_empty(),
+                "changing `{from}` to `{to}` went unnoticed"
+            );
+        }
+    }
+}

@@ -1,0 +1,137 @@
+//! The embedded samples and the fixed views over them that `demo`, `bench` and the tests share:
+//! where each sample file is, how it is ingested, and which cameras look at it.
+
+use std::path::{Path, PathBuf};
+
+use chrono::{DateTime, TimeZone, Utc};
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
+use stratus_ingest::meta::LayerKind;
+use stratus_ingest::pipeline::{IngestOptions, Plan};
+use stratus_ingest::region::Region;
+use stratus_ingest::spline::Interp;
+use stratus_ingest::IngestError;
+
+use crate::render::{Camera, View};
+
+/// A fixed view with its time of day (`None`: the map's valid time).
+#[derive(Clone, Copy, Debug)]
+pub struct Scene {
+    pub name: &'static str,
+    pub view: View,
+    pub time: Option<DateTime<Utc>>,
+}
+
+/// A GRIB2 file in `data-samples/` and how the demo and bench ingest and view it.
+#[derive(Clone, Debug)]
+pub struct Sample {
+    /// Path relative to the workspace root.
+    pub file: &'static str,
+    pub region: Region,
+    pub size: (u32, u32),
+    /// The views over it.
+    pub scenes: Vec<Scene>,
+    /// The ones `stratus demo` renders, by name.
+    pub demo_views: Vec<&'static str>,
+}
+
+fn utc(y: i32, mo: u32, d: u32, h: u32, mi: u32) -> Option<DateTime<Utc>> {
+    Utc.with_ymd_and_hms(y, mo, d, h, mi, 0).single()
+}
+
+/// The synthetic sample (a cold front over the North Atlantic with invented values): what the
+/// bench and the tests that need a known field use.
+pub fn synthetic() -> Sample {
+    let dusk = utc(2024, 6, 1, 20, 45);
+    Sample {
+        file: "data-samples/synthetic-gfs-rh.grib2",
+        region: Region {
+            south: 30.0,
+            north: 60.0,
+            west: -40.0,
+            east: 0.0,
+        },
+        size: (800, 600),
+        scenes: vec![
+            Scene {
+                name: "above-noon",
+                view: View::Perspective(Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0)),
+                time: None,
+            },
+            Scene {
+                name: "above-dusk",
+                view: View::Perspective(Camera::new(45.5, -22.0, 12_000.0, 45.0, -12.0)),
+                time: dusk,
+            },
+            Scene {
+                name: "inside-layer",
+                view: View::Perspective(Camera::new(47.0, -17.0, 4_500.0, 60.0, 0.0)),
+                time: None,
+            },
+            Scene {
+                name: "horizon-ground",
+                view: View::Perspective(Camera::new(36.0, -28.6, 50.0, 45.0, 10.0)),
+                time: None,
+            },
+            Scene {
+                name: "horizon-dusk",
+                view: View::Perspective(Camera::new(36.0, -28.6, 50.0, 45.0, 10.0)),
+                time: dusk,
+            },
+            Scene {
+                name: "top-down",
+                view: View::TopDown,
+                time: None,
+            },
+        ],
+        demo_views: vec!["above-noon", "above-dusk", "inside-layer", "horizon-ground"],
+    }
+}
+
+/// The sample the demo shows (for now the synthetic one; see data-samples/README.md).
+pub fn demo() -> Sample {
+    synthetic()
+}
+
+impl Sample {
+    /// The file, found from the current directory or the workspace this binary was built in.
+    pub fn path(&self) -> PathBuf {
+        let here = Path::new(self.file);
+        if here.exists() {
+            return here.to_path_buf();
+        }
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(self.file)
+    }
+
+    /// How it is ingested: every level folded into three layers with the default rh_cr.
+    pub fn options(&self) -> IngestOptions {
+        IngestOptions {
+            region: self.region,
+            width: self.size.0,
+            height: self.size.1,
+            rh_cr: LayerKind::ALL.map(LayerKind::default_rh_cr),
+            interp: Interp::Spline,
+        }
+    }
+
+    /// Read `file` (this sample's or another forecast) and prepare the resampling.
+    pub fn plan(&self, file: &Path) -> Result<Plan, IngestError> {
+        let fc = Forecast::open(file, LevelSelect::AllBelow(DEFAULT_TOP_HPA))?;
+        Plan::new(&fc, &self.options())
+    }
+
+    /// The sample's CloudMap, in memory.
+    pub fn map(&self) -> Result<CloudMap, IngestError> {
+        Ok(self.plan(&self.path())?.build())
+    }
+
+    /// The scene called `name`.
+    pub fn scene(&self, name: &str) -> Option<Scene> {
+        self.scenes.iter().copied().find(|s| s.name == name)
+    }
+
+    /// The scenes called `names`, in that order (unknown names are left out).
+    pub fn scenes_named(&self, names: &[&str]) -> Vec<Scene> {
+        names.iter().filter_map(|n| self.scene(n)).collect()
+    }
+}
