@@ -150,7 +150,7 @@ impl Forecast {
         // gh on the same grid and levels gives the layer altitudes; absent gh is not an error.
         let mut gh = BTreeMap::new();
         for m in msgs.iter().filter(|m| {
-            (m.discipline, m.category, m.number) == (0, 3, 5)
+            m.is_geopotential_height()
                 && m.grid == first_grid
                 && m.pressure_hpa()
                     .is_some_and(|p| present.iter().any(|q| (q - p).abs() < 1e-6))
