@@ -193,6 +193,14 @@ impl Forecast {
         Some(sum / n as f64)
     }
 
+    /// reference_time + step: the time the clouds are valid for.
+    pub fn valid_time(&self) -> Option<DateTime<Utc>> {
+        Some(grib::info::after_step(
+            self.reference_time?,
+            self.step_hours?,
+        ))
+    }
+
     /// Pressures of all loaded RH levels, descending.
     pub fn pressures(&self) -> Vec<f64> {
         self.levels.iter().map(|l| l.pressure_hpa).collect()

@@ -250,10 +250,13 @@ impl MessageInfo {
     }
 
     pub fn valid_time(&self) -> Option<DateTime<Utc>> {
-        let r = self.reference_time?;
-        let s = self.step_hours?;
-        Some(r + Duration::seconds((s * 3600.0).round() as i64))
+        Some(after_step(self.reference_time?, self.step_hours?))
     }
+}
+
+/// `reference` + a forecast step in hours, to the nearest second.
+pub fn after_step(reference: DateTime<Utc>, step_hours: f64) -> DateTime<Utc> {
+    reference + Duration::seconds((step_hours * 3600.0).round() as i64)
 }
 
 fn trim_num(x: f64) -> String {
