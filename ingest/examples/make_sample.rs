@@ -11,6 +11,7 @@
 
 use chrono::{TimeZone, Utc};
 use stratus_ingest::encode::{encode_file, fixtures::XorShift, param, Grib2Field};
+use stratus_ingest::grib::{Discipline, SurfaceType};
 
 const LEVELS_HPA: [f64; 9] = [
     1000.0, 925.0, 850.0, 700.0, 600.0, 500.0, 400.0, 300.0, 250.0,
@@ -107,10 +108,10 @@ fn main() {
     let dyn_noise = Waves::new(&mut rng, 4);
 
     let base = Grib2Field {
-        discipline: 0,
+        discipline: Discipline::Meteorological,
         category: 1,
         number: 1,
-        level_type: 100,
+        level_type: Some(SurfaceType::Isobaric),
         level_value: 0.0,
         ni: NI,
         nj: NJ,
@@ -139,7 +140,7 @@ fn main() {
             .map(|(lon, lat)| rh(lon, lat, hpa, &noise))
             .collect();
         let field = |p: (u8, u8, u8), values, decimal_scale, bits| Grib2Field {
-            discipline: p.0,
+            discipline: Discipline::from_code(p.0),
             category: p.1,
             number: p.2,
             level_value,

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
-use stratus_ingest::grib;
+use stratus_ingest::grib::{self, SurfaceType};
 use stratus_ingest::pipeline::coverage;
 use stratus_ingest::{LayerKind, Region};
 
@@ -32,13 +32,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("| layer | GFS tcc level | grid points | tcc ≥ 50 % | RH-derived CM ≥ 0.1 | Dice | Dice (tcc ≥ 20 %, CM > 0) | corr(tcc, CM) |");
     println!("|---|---|---|---|---|---|---|---|");
     for (kind, lt) in [
-        (LayerKind::Low, 214u8),
-        (LayerKind::Middle, 224),
-        (LayerKind::High, 234),
+        (LayerKind::Low, SurfaceType::LowCloudLayer),
+        (LayerKind::Middle, SurfaceType::MiddleCloudLayer),
+        (LayerKind::High, SurfaceType::HighCloudLayer),
     ] {
         let Some(m) = msgs
             .iter()
-            .find(|m| (m.discipline, m.category, m.number) == (0, 6, 1) && m.level_type == lt)
+            .find(|m| m.parameter() == (0, 6, 1) && m.level_type == Some(lt))
         else {
             println!("| {} | absent | | | | | | |", kind.name());
             continue;

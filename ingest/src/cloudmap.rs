@@ -10,6 +10,14 @@ use crate::error::{IngestError, Result};
 use crate::meta::{CloudMapMeta, FORMAT};
 use crate::region::MAX_SIDE;
 
+/// The PNG sample value of full coverage: coverage c in 0..1 is stored as round(c × 65535).
+pub const COVERAGE_FULL: f64 = 65535.0;
+
+/// Coverage (clamped to 0..1) as its 16-bit PNG sample.
+pub fn coverage_to_sample(c: f64) -> u16 {
+    (c.clamp(0.0, 1.0) * COVERAGE_FULL).round() as u16
+}
+
 /// Coverage in 0..1 for R (low), G (middle), B (high), A (= max of the three).
 #[derive(Debug, Clone)]
 pub struct CloudMap {
@@ -28,7 +36,7 @@ impl CloudMap {
 
     /// Total cover (A channel) at pixel (i, j), 0..1.
     pub fn total(&self, i: usize, j: usize) -> f32 {
-        self.texels[j * self.width() + i][3] as f32 / 65535.0
+        self.texels[j * self.width() + i][3] as f32 / COVERAGE_FULL as f32
     }
 
     /// A made-up map (tests, benchmarks, stability cases): coverage per layer slot (low, middle,
@@ -38,7 +46,7 @@ impl CloudMap {
         width: u32,
         height: u32,
         bands: &[(crate::meta::LayerKind, f64, f64)],
-        valid_time: &str,
+        valid_time: chrono::DateTime<chrono::Utc>,
         cover: impl Fn(f64, f64) -> [f64; 3] + Sync,
     ) -> CloudMap {
         use crate::meta::{AltitudeSource, LayerMeta, SourceMeta};
@@ -50,7 +58,7 @@ impl CloudMap {
                 let mut t = [0u16; 4];
                 for &(kind, _, _) in bands {
                     let k = kind.channel();
-                    t[k] = (c[k].clamp(0.0, 1.0) * 65535.0).round() as u16;
+                    t[k] = coverage_to_sample(c[k]);
                 }
                 t[3] = t[0].max(t[1]).max(t[2]);
                 t
@@ -81,9 +89,9 @@ impl CloudMap {
                 interpolation: "synthetic".into(),
                 source: SourceMeta {
                     file: "synthetic".into(),
-                    reference_time: valid_time.into(),
+                    reference_time: Some(valid_time),
                     forecast_step_h: 0.0,
-                    valid_time: valid_time.into(),
+                    valid_time: Some(valid_time),
                     grid_ni: 0,
                     grid_nj: 0,
                     grid_di_deg: 0.0,

@@ -150,7 +150,7 @@ impl Forecast {
         // gh on the same grid and levels gives the layer altitudes; absent gh is not an error.
         let mut gh = BTreeMap::new();
         for m in msgs.iter().filter(|m| {
-            (m.discipline, m.category, m.number) == (0, 3, 5)
+            m.is_geopotential_height()
                 && m.grid == first_grid
                 && m.pressure_hpa()
                     .is_some_and(|p| present.iter().any(|q| (q - p).abs() < 1e-6))
@@ -191,6 +191,14 @@ impl Forecast {
             sum = f.values.iter().sum();
         }
         Some(sum / n as f64)
+    }
+
+    /// reference_time + step: the time the clouds are valid for.
+    pub fn valid_time(&self) -> Option<DateTime<Utc>> {
+        Some(grib::info::after_step(
+            self.reference_time?,
+            self.step_hours?,
+        ))
     }
 
     /// Pressures of all loaded RH levels, descending.

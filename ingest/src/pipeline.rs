@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use crate::cloudmap::{write_atomic, CloudMap};
+use crate::cloudmap::{coverage_to_sample, write_atomic, CloudMap, COVERAGE_FULL};
 use crate::error::{IngestError, Result};
 use crate::forecast::Forecast;
 use crate::meta::{AltitudeSource, CloudMapMeta, LayerKind, LayerMeta, SourceMeta, FORMAT};
@@ -185,7 +185,7 @@ impl Plan {
             }
             let row = &mut out[(j - j0) * self.width..(j - j0 + 1) * self.width];
             for (t, a) in row.iter_mut().zip(&acc) {
-                let q = |v: f64| (v * 65535.0).round() as u16;
+                let q = coverage_to_sample;
                 let (r, g, b) = (q(a[0]), q(a[1]), q(a[2]));
                 *t = [r, g, b, r.max(g).max(b)];
             }
@@ -306,8 +306,8 @@ impl Stats {
     fn apply(&self, meta: &mut CloudMapMeta) {
         for l in &mut meta.layers {
             let c = l.channel;
-            l.mean_coverage = self.sum[c] / 65535.0 / self.n.max(1) as f64;
-            l.max_coverage = self.max[c] as f64 / 65535.0;
+            l.mean_coverage = self.sum[c] / COVERAGE_FULL / self.n.max(1) as f64;
+            l.max_coverage = self.max[c] as f64 / COVERAGE_FULL;
         }
     }
 }
@@ -381,14 +381,6 @@ fn build_meta(
             max_coverage: 0.0,
         });
     }
-    let fmt_t = |t: Option<chrono::DateTime<chrono::Utc>>| {
-        t.map(|t| t.to_rfc3339_opts(chrono::SecondsFormat::Secs, true))
-            .unwrap_or_default()
-    };
-    let valid = match (fc.reference_time, fc.step_hours) {
-        (Some(r), Some(s)) => Some(r + chrono::Duration::seconds((s * 3600.0).round() as i64)),
-        _ => None,
-    };
     Ok(CloudMapMeta {
         format: FORMAT.into(),
         image: String::new(),
@@ -399,9 +391,9 @@ fn build_meta(
         interpolation: opts.interp.name().into(),
         source: SourceMeta {
             file: fc.path.display().to_string(),
-            reference_time: fmt_t(fc.reference_time),
+            reference_time: fc.reference_time,
             forecast_step_h: fc.step_hours.unwrap_or(0.0),
-            valid_time: fmt_t(valid),
+            valid_time: fc.valid_time(),
             grid_ni: grid.ni,
             grid_nj: grid.nj,
             grid_di_deg: grid.di,
