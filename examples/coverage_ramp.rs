@@ -26,17 +26,10 @@ fn main() -> anyhow::Result<()> {
         (LayerKind::Middle, 3500.0, 6000.0),
         (LayerKind::High, 7000.0, 10000.0),
     ] {
-        let map = CloudMap::from_fn(
-            region,
-            w,
-            h,
-            &[(kind, base, top)],
-            "2024-06-21T12:00:00Z",
-            |_, lon| {
-                let c = (lon - 100.0) / 10.0;
-                [c, c, c]
-            },
-        );
+        let map = CloudMap::from_fn(region, w, h, &[(kind, base, top)], t, |_, lon| {
+            let c = (lon - 100.0) / 10.0;
+            [c, c, c]
+        });
         let mut r = Renderer::new(Gpu::new(None)?, &map);
         for p in [Preset::Fast, Preset::Balanced, Preset::High] {
             let out = r.render(&View::TopDown, w, h, &Settings::new(p, t))?;

@@ -132,13 +132,6 @@ impl Sky {
     }
 }
 
-/// The time a map's clouds are valid for, when its source said.
-pub fn valid_time(meta: &stratus_ingest::CloudMapMeta) -> Option<chrono::DateTime<chrono::Utc>> {
-    chrono::DateTime::parse_from_rfc3339(&meta.source.valid_time)
-        .ok()
-        .map(|d| d.with_timezone(&chrono::Utc))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -75,7 +75,9 @@ fn map(dir: &Path, name: &str, cover: f64) -> PathBuf {
         96,
         64,
         &[(LayerKind::Low, 1000.0, 3000.0)],
-        "2024-06-21T14:00:00Z",
+        chrono::DateTime::parse_from_rfc3339("2024-06-21T14:00:00Z")
+            .expect("a valid time")
+            .to_utc(),
         |_, _| [cover, 0.0, 0.0],
     );
     let png = dir.join(format!("{name}.png"));

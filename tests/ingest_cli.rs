@@ -84,7 +84,10 @@ fn real_gfs_file_ingests_and_inspects() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let map = stratus_ingest::CloudMap::load(&out.with_extension("json")).unwrap();
     assert_eq!(map.meta.layers.len(), 3);
-    assert_eq!(map.meta.source.valid_time, "2011-01-15T12:00:00Z");
+    assert_eq!(
+        map.meta.source.valid_time.map(|t| t.to_rfc3339()),
+        Some("2011-01-15T12:00:00+00:00".to_string())
+    );
     for l in &map.meta.layers {
         assert_eq!(
             l.altitude_source,

@@ -13,6 +13,12 @@ use stratus_ingest::region::Region;
 
 const NOON: &str = "2024-06-21T12:00:00Z";
 
+fn noon() -> DateTime<Utc> {
+    DateTime::parse_from_rfc3339(NOON)
+        .expect("a valid time")
+        .with_timezone(&Utc)
+}
+
 fn region(s: f64, n: f64, w: f64, e: f64) -> Region {
     Region {
         south: s,
@@ -29,7 +35,7 @@ fn map_with(r: Region, f: impl Fn(f64, f64) -> f64 + Sync) -> CloudMap {
         200,
         200,
         &[(LayerKind::Middle, 3000.0, 5000.0)],
-        NOON,
+        noon(),
         |la, lo| [0.0, f(la, lo), 0.0],
     )
 }
@@ -307,4 +313,61 @@ fn rays_cut_short_are_counted_and_marked() {
         "reference: {} of {} rays cut short on this adapter",
         reference.stats.cut_rays, reference.stats.rays
     );
+}
+
+/// GPU resources live as long as what they hold: a settings change makes nothing, a map of the
+/// same size (the window's rh_cr slider) goes into the textures already there, and only a new
+/// output size makes new render targets. The in-place upload draws what a fresh upload draws.
+#[test]
+fn resources_live_as_long_as_what_they_hold() {
+    let reg = region(40.0, 41.0, 10.0, 11.0);
+    let a = map_with(reg, |_, _| 0.3);
+    let b = map_with(reg, |la, _| if la > 40.5 { 1.0 } else { 0.0 });
+    let gpu = Gpu::new(None).expect("a wgpu adapter");
+    let mut r = Renderer::new(gpu, &a);
+    let s = settings();
+    let (w, h) = (48, 48);
+    let first = r.render(&View::TopDown, w, h, &s).expect("render");
+    assert_eq!(r.made().targets, 1);
+    let mut s2 = s.clone();
+    s2.density_mul = 2.0;
+    s2.march = Preset::Fast.params();
+    s2.layers_on = [true, true, false];
+    r.render(&View::TopDown, w, h, &s2).expect("render");
+    assert_eq!(r.made().targets, 1, "a settings change made render targets");
+    r.set_map(&b);
+    let m = r.made();
+    assert_eq!(
+        (m.targets, m.map_textures, m.map_uploads),
+        (1, 1, 2),
+        "{m:?}"
+    );
+    let in_place = r.render(&View::TopDown, w, h, &s).expect("render");
+    assert_eq!(r.made().targets, 1, "a new map made render targets");
+    assert_ne!(first.pixels, in_place.pixels, "the new map was not drawn");
+    r.render(&View::TopDown, 32, 32, &s).expect("render");
+    assert_eq!(r.made().targets, 2, "a new size must make new targets");
+    // A map of another size needs new textures, but not new targets.
+    let c = CloudMap::from_fn(
+        reg,
+        100,
+        80,
+        &[(LayerKind::Middle, 3000.0, 5000.0)],
+        noon(),
+        |_, _| [0.0, 0.5, 0.0],
+    );
+    r.set_map(&c);
+    r.render(&View::TopDown, 32, 32, &s).expect("render");
+    let m = r.made();
+    assert_eq!(
+        (m.targets, m.map_textures, m.map_uploads),
+        (2, 2, 3),
+        "{m:?}"
+    );
+    // What the in-place upload drew is what a renderer made for `b` draws.
+    let gpu = Gpu::new(None).expect("a wgpu adapter");
+    let fresh = Renderer::new(gpu, &b)
+        .render(&View::TopDown, w, h, &s)
+        .expect("render");
+    assert_eq!(fresh.pixels, in_place.pixels);
 }

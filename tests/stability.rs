@@ -30,9 +30,15 @@ fn world(cover: f64) -> CloudMap {
             (LayerKind::Low, 1000.0, 3000.0),
             (LayerKind::High, 7000.0, 9000.0),
         ],
-        T,
+        t(),
         |_, _| [cover, 0.0, cover],
     )
+}
+
+fn t() -> DateTime<Utc> {
+    DateTime::parse_from_rfc3339(T)
+        .expect("a valid time")
+        .with_timezone(&Utc)
 }
 
 fn renderer() -> MutexGuard<'static, Renderer> {
@@ -195,7 +201,7 @@ fn maps_tiny_and_too_large() {
         1,
         1,
         &[(LayerKind::Middle, 3000.0, 5000.0)],
-        T,
+        t(),
         |_, _| [0.0, 1.0, 0.0],
     );
     let o = go(&one, View::TopDown, &s, "1×1 map");
@@ -210,7 +216,7 @@ fn maps_tiny_and_too_large() {
         max + 2,
         2,
         &[(LayerKind::Middle, 3000.0, 5000.0)],
-        T,
+        t(),
         |_, lo| [0.0, (lo < 5.0) as u8 as f64, 0.0],
     );
     let o = go(&wide, View::TopDown, &s, "map over the texture limit");

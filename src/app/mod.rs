@@ -149,7 +149,7 @@ pub struct App {
 }
 
 fn valid_time(map: &CloudMap) -> DateTime<Utc> {
-    crate::sun::valid_time(&map.meta).unwrap_or_else(Utc::now)
+    map.meta.source.valid_time.unwrap_or_else(Utc::now)
 }
 
 /// The surface format: a plain 8-bit one egui prefers (the present pass encodes sRGB itself).

@@ -44,7 +44,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let sample = scenes::synthetic();
     let map: CloudMap = sample.map()?;
-    let time = stratus::sun::valid_time(&map.meta)
+    let time = map
+        .meta
+        .source
+        .valid_time
         .ok_or_else(|| anyhow::anyhow!("the sample has no valid time"))?;
     let g = Gpu::new(a.adapter.as_deref())?;
     eprintln!("stratus: adapter {}", gpu::describe(&g.info));

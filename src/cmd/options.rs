@@ -7,7 +7,7 @@ use anyhow::Context;
 use chrono::{DateTime, Utc};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use stratus::render::{gpu, Camera, Gpu, Preset, Settings};
+use stratus::render::{defaults, gpu, Camera, Gpu, Preset, Settings};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
 use stratus_ingest::meta::LayerKind;
@@ -28,16 +28,16 @@ pub struct LookOpts {
     #[arg(long, allow_hyphen_values = true)]
     pub sun_dir: Option<String>,
     /// Exposure correction in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = defaults::EXPOSURE_EV, allow_negative_numbers = true)]
     pub exposure: f64,
     /// Meteorological visibility in km (aerial haze).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = defaults::VISIBILITY_M / 1000.0)]
     pub visibility_km: f64,
     /// Coverage multiplier.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = defaults::COVERAGE_MUL)]
     pub coverage: f32,
     /// Density multiplier.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = defaults::DENSITY_MUL)]
     pub density: f32,
     /// Layers to draw, e.g. low,middle,high.
     #[arg(long, default_value = "low,middle,high")]
@@ -73,7 +73,10 @@ impl LookOpts {
     pub fn settings(&self, map: &CloudMap) -> anyhow::Result<Settings> {
         let time = match &self.time {
             Some(t) => parse_time(t)?,
-            None => stratus::sun::valid_time(&map.meta)
+            None => map
+                .meta
+                .source
+                .valid_time
                 .context("the map has no valid time: give --time")?,
         };
         let mut s = Settings::new(self.preset, time);
@@ -146,10 +149,13 @@ pub struct IngestOpts {
     /// Critical humidity for every layer (fraction, 0 ≤ x < 1).
     #[arg(long, allow_negative_numbers = true)]
     pub rh_cr: Option<f64>,
+    /// Critical humidity of the low layer.
     #[arg(long, default_value_t = LayerKind::Low.default_rh_cr())]
     pub rh_cr_low: f64,
+    /// Critical humidity of the middle layer.
     #[arg(long, default_value_t = LayerKind::Middle.default_rh_cr())]
     pub rh_cr_mid: f64,
+    /// Critical humidity of the high layer.
     #[arg(long, default_value_t = LayerKind::High.default_rh_cr())]
     pub rh_cr_high: f64,
     /// spline | catmull-rom | bilinear | nearest.

@@ -84,6 +84,19 @@ pub struct Settings {
     pub frame_index: u32,
 }
 
+/// The look's defaults, defined once: [`Settings::new`], the command line and the window's
+/// panel start from these.
+pub mod defaults {
+    pub const COVERAGE_MUL: f32 = 1.0;
+    pub const DENSITY_MUL: f32 = 1.0;
+    /// Extinction per unit of DESIGN's density d (1/m).
+    pub const EXTINCTION: f32 = 0.04;
+    pub const HG_G: f32 = 0.6;
+    pub const BEER_CLAMP: f32 = 0.5;
+    pub const EXPOSURE_EV: f64 = 0.0;
+    pub const VISIBILITY_M: f64 = 60_000.0;
+}
+
 impl Settings {
     pub fn new(preset: Preset, time: DateTime<Utc>) -> Settings {
         Settings {
@@ -91,13 +104,13 @@ impl Settings {
             time,
             sun_override: None,
             layers_on: [true; 3],
-            coverage_mul: 1.0,
-            density_mul: 1.0,
-            extinction: 0.04,
-            hg_g: 0.6,
-            beer_clamp: 0.5,
-            exposure_ev: 0.0,
-            visibility_m: 60_000.0,
+            coverage_mul: defaults::COVERAGE_MUL,
+            density_mul: defaults::DENSITY_MUL,
+            extinction: defaults::EXTINCTION,
+            hg_g: defaults::HG_G,
+            beer_clamp: defaults::BEER_CLAMP,
+            exposure_ev: defaults::EXPOSURE_EV,
+            visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
         }
     }
