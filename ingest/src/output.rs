@@ -668,4 +668,33 @@ mod tests {
         );
         assert!(user.exists(), "a file that is not ours was removed");
     }
+
+    #[test]
+    fn a_pair_waits_for_the_lock_and_the_lock_file_goes() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("m.png");
+        let json = dir.path().join("m.json");
+        let held = PairLock::acquire(&json).unwrap();
+        let lock_file = PairLock::lock_path(&json);
+        assert!(lock_file.exists());
+        std::thread::scope(|s| {
+            let writer = s.spawn(|| {
+                write_pair(
+                    &png,
+                    &[],
+                    |w, _| w.write_all(b"png").map_err(|e| e.to_string()),
+                    |_, _| Ok(b"{}".to_vec()),
+                )
+            });
+            std::thread::sleep(Duration::from_millis(300));
+            assert!(
+                !png.exists(),
+                "the pair was committed while another held its lock"
+            );
+            drop(held);
+            writer.join().unwrap().unwrap();
+        });
+        assert_eq!(fs::read(&png).unwrap(), b"png");
+        assert!(!lock_file.exists(), "the lock file stays");
+    }
 }
