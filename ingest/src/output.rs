@@ -309,12 +309,7 @@ pub(crate) fn new_image_id() -> String {
 ///    reader case).
 ///
 /// The names stay `MAP.png` and `MAP.json`, as GIS tools and the docs expect.
-pub(crate) fn write_pair<P, S>(
-    png: &Path,
-    inputs: &[&Path],
-    write_png: P,
-    sidecar: S,
-) -> Result<PathBuf>
+pub fn write_pair<P, S>(png: &Path, inputs: &[&Path], write_png: P, sidecar: S) -> Result<PathBuf>
 where
     P: FnOnce(&mut BufWriter<File>, &str) -> std::result::Result<(), String>,
     S: FnOnce(&str, &str) -> Result<Vec<u8>>,
