@@ -137,7 +137,7 @@ pub struct IngestOpts {
     /// Region as S,N,W,E in degrees (longitudes -180..180 or 0..360; W > E crosses the date line).
     #[arg(long, allow_hyphen_values = true)]
     pub region: Option<String>,
-    /// Output size WxH in pixels (each side 1..=16384).
+    /// Output size WxH in pixels (each side 1..=8192, what the renderer can upload).
     #[arg(long, default_value = "1024x1024")]
     pub size: String,
     /// One isobaric level in hPa (the paper's case); default: all levels folded into layers.
