@@ -7,11 +7,14 @@ struct NoiseParams {
     size: u32,      // texels per side
     kind: u32,      // 0 shape, 1 detail
     seed: u32,
-    _pad: u32,
+    row_words: u32, // u32s per texel row in `out_texels` (rows padded for the texture copy)
 };
 
+// RGBA8 texels, packed, row by row and slice by slice; the Rust side copies them into the 3D
+// texture. (Not a 3D storage texture: wgpu's GL backend binds those one slice deep, and the
+// other slices stayed empty.)
 @group(0) @binding(0) var<uniform> params: NoiseParams;
-@group(0) @binding(1) var out_tex: texture_storage_3d<rgba8unorm, write>;
+@group(0) @binding(1) var<storage, read_write> out_texels: array<u32>;
 
 fn hash_u(x: u32) -> u32 {
     // PCG-style integer hash.
@@ -114,5 +117,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     } else {
         v = vec4<f32>(worley_fbm(p, 2, 60u), worley_fbm(p, 4, 70u), worley_fbm(p, 8, 80u), 1.0);
     }
-    textureStore(out_tex, vec3<i32>(id), v);
+    out_texels[(id.z * params.size + id.y) * params.row_words + id.x] = pack4x8unorm(v);
 }

@@ -88,9 +88,58 @@ pub fn synthetic() -> Sample {
     }
 }
 
-/// The sample the demo shows (for now the synthetic one; see data-samples/README.md).
+/// The real sample: a cut of NCEP's GFS 2.5° forecast for 2011-01-15 12 UTC (+120 h), over the
+/// same region, where a textbook cold front runs south-west to north-east with low cloud along
+/// and behind it, a dry slot to the north-west and clear air to the south-east.
+pub fn gfs() -> Sample {
+    let above = View::Perspective(Camera::new(42.5, -26.0, 16_000.0, 60.0, -12.0));
+    Sample {
+        file: "data-samples/gfs-2011011012-f120-2p5.grib2",
+        region: Region {
+            south: 30.0,
+            north: 60.0,
+            west: -40.0,
+            east: 0.0,
+        },
+        size: (800, 600),
+        scenes: vec![
+            // Over the dry slot, looking across the front's deck (Sun about 21° up).
+            Scene {
+                name: "above-noon",
+                view: above,
+                time: None,
+            },
+            // The same at sunset there (Sun about 3° up).
+            Scene {
+                name: "above-dusk",
+                view: above,
+                time: utc(2011, 1, 15, 18, 10),
+            },
+            // In the middle layer's band, between the low deck and the high overcast.
+            Scene {
+                name: "inside-layer",
+                view: View::Perspective(Camera::new(37.8, -20.9, 5_000.0, 340.0, 0.0)),
+                time: None,
+            },
+            // From the sea in the dry slot, toward the front.
+            Scene {
+                name: "horizon-ground",
+                view: View::Perspective(Camera::new(44.2, -23.6, 50.0, 150.0, 15.0)),
+                time: None,
+            },
+            Scene {
+                name: "top-down",
+                view: View::TopDown,
+                time: None,
+            },
+        ],
+        demo_views: vec!["above-noon", "above-dusk", "inside-layer", "horizon-ground"],
+    }
+}
+
+/// The sample the demo shows: real weather.
 pub fn demo() -> Sample {
-    synthetic()
+    gfs()
 }
 
 impl Sample {

@@ -62,9 +62,10 @@ const RULES: &[Rule] = &[
 
 fn rule_of(m: &grib::MessageInfo) -> Option<usize> {
     RULES.iter().position(|&(_, d, c, n, levels, (lo, hi))| {
-        (m.discipline, m.category, m.number) == (d, c, n)
-            && levels.contains(&m.level_type)
-            && (m.level_type != 100 || m.pressure_hpa().is_some_and(|p| p >= lo && p <= hi))
+        let level = m.level_type.map(|t| t.code());
+        (m.discipline.code(), m.category, m.number) == (d, c, n)
+            && level.is_some_and(|t| levels.contains(&t))
+            && (level != Some(100) || m.pressure_hpa().is_some_and(|p| p >= lo && p <= hi))
     })
 }
 

@@ -21,7 +21,8 @@ crate::gpu_struct! {
         /// 0 shape, 1 detail.
         pub kind: u32,
         pub seed: u32,
-        pub _pad: u32,
+        /// u32s per texel row in the output buffer (rows padded to the copy alignment).
+        pub row_words: u32,
     }
 }
 
@@ -31,9 +32,15 @@ pub const BINDINGS: &[Binding] = &[
     Binding {
         group: 0,
         binding: 1,
-        resource: Resource::StorageTexture(wgpu::TextureFormat::Rgba8Unorm, 3),
+        resource: Resource::StorageRw,
     },
 ];
+
+/// Bytes per texel row in the noise output buffer: 4 per texel, padded to what a buffer-to-
+/// texture copy needs.
+fn row_bytes(size: u32) -> u32 {
+    (size * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+}
 
 pub struct NoiseTextures {
     pub shape: wgpu::Texture,
@@ -70,7 +77,9 @@ impl NoiseTextures {
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D3,
                 format: wgpu::TextureFormat::Rgba8Unorm,
-                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_DST
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             });
             let params = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -79,19 +88,21 @@ impl NoiseTextures {
                     size,
                     kind,
                     seed: SEED,
-                    _pad: 0,
+                    row_words: row_bytes(size) / 4,
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-            let view = tex.create_view(&Default::default());
+            let texels = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: row_bytes(size) as u64 * size as u64 * size as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
             let bind = bind(
                 dev,
                 label,
                 &group,
-                [
-                    params.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&view),
-                ],
+                [params.as_entire_binding(), texels.as_entire_binding()],
             );
             let mut enc = dev.create_command_encoder(&Default::default());
             {
@@ -101,6 +112,18 @@ impl NoiseTextures {
                 let g = size.div_ceil(4);
                 pass.dispatch_workgroups(g, g, g);
             }
+            enc.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &texels,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row_bytes(size)),
+                        rows_per_image: Some(size),
+                    },
+                },
+                tex.as_image_copy(),
+                tex.size(),
+            );
             gpu.queue.submit([enc.finish()]);
             tex
         };
@@ -108,5 +131,34 @@ impl NoiseTextures {
             shape: make(SHAPE_SIZE, 0, "shape noise"),
             detail: make(DETAIL_SIZE, 1, "detail noise"),
         }
+    }
+}
+
+impl NoiseTextures {
+    /// The shape texture's bytes, slice by slice (RGBA8): for tests that check what the GPU made.
+    pub fn read_shape(&self, gpu: &Gpu) -> Result<Vec<u8>, super::RenderError> {
+        let size = self.shape.size();
+        let bytes = row_bytes(size.width);
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shape noise readback"),
+            size: bytes as u64 * size.height as u64 * size.depth_or_array_layers as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            self.shape.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes),
+                    rows_per_image: Some(size.height),
+                },
+            },
+            size,
+        );
+        gpu.queue.submit([enc.finish()]);
+        super::readback::Pending::whole(buffer).finish(gpu)
     }
 }
