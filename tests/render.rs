@@ -405,3 +405,52 @@ fn noise_fills_every_slice_on_every_backend() {
     }
     assert!(tried > 0, "no adapter at all");
 }
+
+/// The window's way of reading a frame's work: copied after the frame, mapped asynchronously and
+/// picked up by polling, never by waiting. The counters it returns are that frame's.
+#[test]
+fn frame_statistics_arrive_without_waiting() {
+    let mut r = renderer();
+    let map = map_with(region(40.0, 41.0, 10.0, 11.0), |_, _| 0.6);
+    r.set_map(&map);
+    let (w, h) = (40, 30);
+    let format = wgpu::TextureFormat::Rgba8Unorm;
+    let target = r.gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test target"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let view = target.create_view(&Default::default());
+    let device = r.gpu.device.clone();
+    let mut enc = device.create_command_encoder(&Default::default());
+    let s = settings();
+    r.encode(&mut enc, &View::TopDown, w, h, &s, &view, format, w)
+        .expect("encode");
+    r.request_stats(&mut enc);
+    r.gpu.queue.submit([enc.finish()]);
+    r.after_submit();
+    let mut got = None;
+    for _ in 0..2000 {
+        got = r.poll_stats();
+        if got.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let fs = got.expect("the frame's statistics never arrived");
+    assert_eq!(fs.stats.rays, (w * h) as u64);
+    assert!(fs.stats.density_samples > 0, "{:?}", fs.stats);
+    assert!(
+        r.poll_stats().is_none(),
+        "the same frame was reported twice"
+    );
+}

@@ -2,7 +2,7 @@
 //! where the adapter has trustworthy ones). Read synchronously for headless frames, or a frame
 //! or two late for the window, which must never wait on the GPU for them.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
 
 use serde::Serialize;
@@ -187,10 +187,15 @@ enum SlotState {
     Mapping,
 }
 
+/// Where a slot's map request stands (shared with its callback).
+const PENDING: u8 = 0;
+const MAPPED: u8 = 1;
+const FAILED: u8 = 2;
+
 struct Slot {
     buffer: wgpu::Buffer,
     state: SlotState,
-    ready: Arc<AtomicBool>,
+    mapped: Arc<AtomicU8>,
     /// Frame order, so the newest finished copy wins.
     seq: u64,
 }
@@ -213,7 +218,7 @@ impl StatsReader {
                 .map(|_| Slot {
                     buffer: staging(gpu),
                     state: SlotState::Free,
-                    ready: Arc::new(AtomicBool::new(false)),
+                    mapped: Arc::new(AtomicU8::new(PENDING)),
                     seq: 0,
                 })
                 .collect(),
@@ -240,15 +245,13 @@ impl StatsReader {
     pub fn after_submit(&mut self) {
         for slot in self.slots.iter_mut() {
             if slot.state == SlotState::Recorded {
-                slot.ready.store(false, Ordering::Release);
-                let ready = slot.ready.clone();
+                slot.mapped.store(PENDING, Ordering::Release);
+                let mapped = slot.mapped.clone();
                 slot.buffer
                     .slice(..)
                     .map_async(wgpu::MapMode::Read, move |r| {
-                        // A failed map leaves the slot waiting; it is retried by no one, but the
-                        // frame is merely unmeasured. Mark it done so the slot is freed.
-                        let _ = r;
-                        ready.store(true, Ordering::Release);
+                        // A failed map only leaves that frame unmeasured.
+                        mapped.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
                     });
                 slot.state = SlotState::Mapping;
             }
@@ -260,16 +263,23 @@ impl StatsReader {
         let _ = gpu.device.poll(wgpu::PollType::Poll);
         let mut best: Option<(u64, FrameStats)> = None;
         for slot in self.slots.iter_mut() {
-            if slot.state != SlotState::Mapping || !slot.ready.load(Ordering::Acquire) {
+            if slot.state != SlotState::Mapping {
                 continue;
             }
-            let parsed = slot
-                .buffer
-                .slice(..)
-                .get_mapped_range()
-                .ok()
-                .map(|raw| parse(&raw, timer));
-            slot.buffer.unmap();
+            let parsed = match slot.mapped.load(Ordering::Acquire) {
+                PENDING => continue,
+                MAPPED => {
+                    let parsed = slot
+                        .buffer
+                        .slice(..)
+                        .get_mapped_range()
+                        .ok()
+                        .map(|raw| parse(&raw, timer));
+                    slot.buffer.unmap();
+                    parsed
+                }
+                _ => None,
+            };
             slot.state = SlotState::Free;
             if let Some(fs) = parsed {
                 if slot.seq > self.newest && best.as_ref().is_none_or(|(s, _)| slot.seq > *s) {
