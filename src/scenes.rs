@@ -35,6 +35,21 @@ pub struct Sample {
     pub demo_views: Vec<&'static str>,
 }
 
+/// The region both samples cover: 30–60°N, 40°W–0°, the North Atlantic west of Europe.
+const NORTH_ATLANTIC: Region = Region {
+    south: 30.0,
+    north: 60.0,
+    west: -40.0,
+    east: 0.0,
+};
+
+/// The straight-down view the score compares with the map.
+const TOP_DOWN: Scene = Scene {
+    name: "top-down",
+    view: View::TopDown,
+    time: None,
+};
+
 fn utc(y: i32, mo: u32, d: u32, h: u32, mi: u32) -> Option<DateTime<Utc>> {
     Utc.with_ymd_and_hms(y, mo, d, h, mi, 0).single()
 }
@@ -45,12 +60,7 @@ pub fn synthetic() -> Sample {
     let dusk = utc(2024, 6, 1, 20, 45);
     Sample {
         file: "data-samples/synthetic-gfs-rh.grib2",
-        region: Region {
-            south: 30.0,
-            north: 60.0,
-            west: -40.0,
-            east: 0.0,
-        },
+        region: NORTH_ATLANTIC,
         size: (800, 600),
         scenes: vec![
             Scene {
@@ -78,11 +88,7 @@ pub fn synthetic() -> Sample {
                 view: View::Perspective(Camera::new(36.0, -28.6, 50.0, 45.0, 10.0)),
                 time: dusk,
             },
-            Scene {
-                name: "top-down",
-                view: View::TopDown,
-                time: None,
-            },
+            TOP_DOWN,
         ],
         demo_views: vec!["above-noon", "above-dusk", "inside-layer", "horizon-ground"],
     }
@@ -95,12 +101,7 @@ pub fn gfs() -> Sample {
     let above = View::Perspective(Camera::new(42.5, -26.0, 16_000.0, 60.0, -12.0));
     Sample {
         file: "data-samples/gfs-2011011012-f120-2p5.grib2",
-        region: Region {
-            south: 30.0,
-            north: 60.0,
-            west: -40.0,
-            east: 0.0,
-        },
+        region: NORTH_ATLANTIC,
         size: (800, 600),
         scenes: vec![
             // Over the dry slot, looking across the front's deck (Sun about 21° up).
@@ -127,11 +128,7 @@ pub fn gfs() -> Sample {
                 view: View::Perspective(Camera::new(44.2, -23.6, 50.0, 150.0, 15.0)),
                 time: None,
             },
-            Scene {
-                name: "top-down",
-                view: View::TopDown,
-                time: None,
-            },
+            TOP_DOWN,
         ],
         demo_views: vec!["above-noon", "above-dusk", "inside-layer", "horizon-ground"],
     }

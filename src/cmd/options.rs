@@ -56,17 +56,9 @@ pub fn parse_numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> 
     }
 }
 
-/// A time on the command line: ISO 8601 with or without the zone (then UTC).
+/// A time on the command line: the sidecar's one parser (ISO 8601, without a zone read as UTC).
 pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
-    DateTime::parse_from_rfc3339(s)
-        .map(|d| d.with_timezone(&Utc))
-        .or_else(|_| {
-            chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M:%S").map(|n| n.and_utc())
-        })
-        .or_else(|_| {
-            chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc())
-        })
-        .with_context(|| format!("time \"{s}\" is not ISO 8601 (e.g. 2011-01-15T06:00:00Z)"))
+    Ok(stratus_ingest::meta::parse_time(s)?)
 }
 
 impl LookOpts {
