@@ -1,14 +1,19 @@
 //! The CloudMap: per-pixel low/middle/high/total coverage, its 16-bit PNG and sidecar I/O.
 //!
-//! Writing is atomic (temporary file, then rename) so a failed ingest leaves nothing behind.
+//! A map's PNG and sidecar are written as one pair ([`crate::output::write_pair`]): a failed
+//! or interrupted write leaves the previous pair, and a reader never trusts a PNG that is not
+//! its sidecar's.
 
 use std::fs;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{IngestError, Result};
 use crate::meta::{CloudMapMeta, FORMAT};
-use crate::region::MAX_SIDE;
+pub use crate::output::write_atomic;
+use crate::output::write_pair;
+/// Largest map side, shared by ingest, the loader and the renderer.
+pub use crate::region::MAX_SIDE;
 
 /// The PNG sample value of full coverage: coverage c in 0..1 is stored as round(c × 65535).
 pub const COVERAGE_FULL: f64 = 65535.0;
@@ -82,6 +87,7 @@ impl CloudMap {
             meta: CloudMapMeta {
                 format: FORMAT.to_string(),
                 image: "synthetic.png".into(),
+                image_id: None,
                 region,
                 width,
                 height,
@@ -102,73 +108,109 @@ impl CloudMap {
         }
     }
 
-    /// Load a CloudMap from its sidecar (`MAP.json`), checking the PNG agrees with it.
+    /// Load a CloudMap from its sidecar (`MAP.json`), checking the sidecar ([`load_meta`])
+    /// and that the PNG is its own: the size it declares (checked before anything is decoded)
+    /// and, for format 2, the image id it carries. A pair caught between a writer's two
+    /// renames is read again a few times before it is refused.
     pub fn load(sidecar: &Path) -> Result<CloudMap> {
-        let bad = |msg: String| IngestError::BadCloudMap {
-            path: sidecar.to_path_buf(),
-            msg,
-        };
-        let text = fs::read_to_string(sidecar).map_err(|e| IngestError::Io {
-            path: sidecar.to_path_buf(),
-            source: e,
-        })?;
-        let meta: CloudMapMeta =
-            serde_json::from_str(&text).map_err(|e| bad(format!("sidecar is not valid: {e}")))?;
-        if meta.format != FORMAT {
-            return Err(bad(format!("format '{}' is not '{FORMAT}'", meta.format)));
-        }
-        meta.region.validate().map_err(|e| bad(e.to_string()))?;
-        if meta.width == 0 || meta.height == 0 || meta.width > MAX_SIDE || meta.height > MAX_SIDE {
-            return Err(bad(format!(
-                "size {}x{} out of range",
-                meta.width, meta.height
-            )));
-        }
-        for l in &meta.layers {
-            if l.channel > 2
-                || !(l.base_m.is_finite() && l.top_m.is_finite())
-                || l.top_m <= l.base_m
-            {
-                return Err(bad(format!(
-                    "layer {} has channel {} and band {}..{} m",
-                    l.kind.name(),
-                    l.channel,
-                    l.base_m,
-                    l.top_m
-                )));
+        let mut attempt = 0;
+        loop {
+            let meta = load_meta(sidecar)?;
+            match read_png16(&meta.image_path(sidecar), &meta) {
+                Ok(texels) => return Ok(CloudMap { meta, texels }),
+                Err(PngFault::NotThisPair(_)) if attempt < PAIR_RETRIES => {
+                    attempt += 1;
+                    std::thread::sleep(PAIR_RETRY_WAIT);
+                }
+                Err(PngFault::NotThisPair(e) | PngFault::Other(e)) => return Err(e),
             }
         }
-        let png_path = meta.image_path(sidecar);
-        let texels = read_png16(&png_path, meta.width, meta.height)?;
-        Ok(CloudMap { meta, texels })
     }
 
-    /// Write `png_path` and its sidecar (same stem, `.json`), each atomically.
+    /// Write `png_path` and its sidecar (same stem, `.json`) as one pair (see
+    /// [`crate::output::write_pair`]); the map must pass [`CloudMapMeta::validate_content`].
     pub fn save(&self, png_path: &Path) -> Result<PathBuf> {
-        let sidecar = png_path.with_extension("json");
+        let (width, height) = (self.meta.width, self.meta.height);
+        if self.texels.len() != width as usize * height as usize {
+            return Err(IngestError::BadMap(format!(
+                "{} texels for a {width}x{height} map",
+                self.texels.len()
+            )));
+        }
+        self.meta.validate_content().map_err(IngestError::BadMap)?;
         let mut bytes = Vec::with_capacity(self.texels.len() * 8);
         for t in &self.texels {
             for c in t {
                 bytes.extend_from_slice(&c.to_be_bytes());
             }
         }
-        write_atomic(png_path, |w| {
-            encode_png16(w, self.meta.width, self.meta.height, 4, &bytes)
-        })?;
-        // The sidecar names the PNG it sits beside, whatever the map was called before.
-        let mut meta = self.meta.clone();
-        if let Some(name) = png_path.file_name() {
-            meta.image = name.to_string_lossy().into_owned();
-        }
-        let json = serde_json::to_string_pretty(&meta).map_err(|e| IngestError::Write {
-            path: sidecar.clone(),
-            msg: e.to_string(),
-        })?;
-        write_atomic(&sidecar, |w| {
-            w.write_all(json.as_bytes()).map_err(|e| e.to_string())
-        })?;
-        Ok(sidecar)
+        write_pair(
+            png_path,
+            &[],
+            |w, id| {
+                let mut wr = rgba16_writer(w, width, height, id)?;
+                wr.write_image_data(&bytes).map_err(|e| e.to_string())?;
+                wr.finish().map_err(|e| e.to_string())
+            },
+            |name, id| sidecar_json(&self.meta, name, id, png_path),
+        )
     }
+}
+
+/// The PNG text chunk under which a map's PNG carries its sidecar's `image_id`.
+pub const IMAGE_ID_KEYWORD: &str = "stratus-image-id";
+
+/// How often, and how far apart, [`CloudMap::load`] reads again a pair whose PNG is not its
+/// sidecar's: a writer is between its two renames for well under a millisecond.
+const PAIR_RETRIES: u32 = 5;
+const PAIR_RETRY_WAIT: std::time::Duration = std::time::Duration::from_millis(40);
+
+/// Read and check a sidecar: at most [`crate::input::MAX_SIDECAR_BYTES`], valid JSON of a
+/// known format, and every value within [`CloudMapMeta::validate`]'s ranges. Errors name the
+/// sidecar and the field.
+pub fn load_meta(sidecar: &Path) -> Result<CloudMapMeta> {
+    let bad = |msg: String| IngestError::BadCloudMap {
+        path: sidecar.to_path_buf(),
+        msg,
+    };
+    let text = crate::input::read_sidecar_text(sidecar)?;
+    let meta: CloudMapMeta =
+        serde_json::from_str(&text).map_err(|e| bad(format!("sidecar is not valid: {e}")))?;
+    meta.validate().map_err(bad)?;
+    Ok(meta)
+}
+
+/// The sidecar's bytes for `meta` written beside a PNG named `image` carrying `id`.
+pub(crate) fn sidecar_json(
+    meta: &CloudMapMeta,
+    image: &str,
+    id: &str,
+    png_path: &Path,
+) -> Result<Vec<u8>> {
+    let mut meta = meta.clone();
+    meta.format = FORMAT.into();
+    meta.image = image.into();
+    meta.image_id = Some(id.into());
+    meta.validate().map_err(IngestError::BadMap)?;
+    serde_json::to_string_pretty(&meta)
+        .map(String::into_bytes)
+        .map_err(|e| IngestError::write(&png_path.with_extension("json"), e))
+}
+
+/// A 16-bit RGBA PNG writer whose header carries the pair's image id.
+pub(crate) fn rgba16_writer<W: Write>(
+    w: W,
+    width: u32,
+    height: u32,
+    id: &str,
+) -> std::result::Result<png::Writer<W>, String> {
+    let mut enc = png::Encoder::new(w, width, height);
+    enc.set_color(png::ColorType::Rgba);
+    enc.set_depth(png::BitDepth::Sixteen);
+    enc.set_compression(png::Compression::Fast);
+    enc.add_text_chunk(IMAGE_ID_KEYWORD.into(), id.into())
+        .map_err(|e| e.to_string())?;
+    enc.write_header().map_err(|e| e.to_string())
 }
 
 /// Encode big-endian 16-bit samples as PNG (`channels` = 1 grey or 4 RGBA).
@@ -192,63 +234,69 @@ pub fn encode_png16<W: Write>(
     wr.finish().map_err(|e| e.to_string())
 }
 
-/// Write a file through a temporary sibling and rename it into place; on any error the
-/// temporary is removed and `path` is untouched.
-pub fn write_atomic<F>(path: &Path, body: F) -> Result<()>
-where
-    F: FnOnce(&mut BufWriter<fs::File>) -> std::result::Result<(), String>,
-{
-    let err = |msg: String| IngestError::Write {
-        path: path.to_path_buf(),
-        msg,
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| err("no file name".into()))?
-        .to_string_lossy();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let result = (|| {
-        let f = fs::File::create(&tmp).map_err(|e| e.to_string())?;
-        let mut w = BufWriter::new(f);
-        body(&mut w)?;
-        w.flush().map_err(|e| e.to_string())?;
-        let f = w.into_inner().map_err(|e| e.to_string())?;
-        f.sync_all().map_err(|e| e.to_string())?;
-        fs::rename(&tmp, path).map_err(|e| e.to_string())
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    result.map_err(err)
+/// Why a map's PNG was not read: it is not the sidecar's (worth reading the pair again), or
+/// anything else.
+enum PngFault {
+    NotThisPair(IngestError),
+    Other(IngestError),
 }
 
-/// Read a 16-bit RGBA PNG of the expected size (8-bit RGBA is widened).
-fn read_png16(path: &Path, width: u32, height: u32) -> Result<Vec<[u16; 4]>> {
-    let bad = |msg: String| IngestError::BadCloudMap {
-        path: path.to_path_buf(),
-        msg,
+/// Memory the PNG decoder may use beside the image itself (text chunks, row buffers).
+const PNG_DECODER_LIMIT: usize = 16 << 20;
+
+/// Read the 16-bit (or 8-bit, widened) RGBA PNG `meta` describes. Its header is checked
+/// against the sidecar — size, colour type, and image id — before any pixel is decoded, so a
+/// PNG that would decompress to more than the sidecar's (bounded) size is never expanded.
+fn read_png16(path: &Path, meta: &CloudMapMeta) -> std::result::Result<Vec<[u16; 4]>, PngFault> {
+    let (width, height) = (meta.width, meta.height);
+    let bad = |msg: String| {
+        PngFault::Other(IngestError::BadCloudMap {
+            path: path.to_path_buf(),
+            msg,
+        })
     };
-    let f = fs::File::open(path).map_err(|e| IngestError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
-    let mut dec = png::Decoder::new(std::io::BufReader::new(f));
+    let f = fs::File::open(path).map_err(|e| PngFault::Other(IngestError::io(path, e)))?;
+    let mut dec = png::Decoder::new_with_limits(
+        std::io::BufReader::new(f),
+        png::Limits {
+            bytes: PNG_DECODER_LIMIT,
+        },
+    );
     dec.set_transformations(png::Transformations::IDENTITY);
     let mut reader = dec
         .read_info()
         .map_err(|e| bad(format!("not a PNG: {e}")))?;
     let info = reader.info();
     if (info.width, info.height) != (width, height) {
-        return Err(bad(format!(
-            "PNG is {}x{} but its sidecar says {width}x{height}",
-            info.width, info.height
-        )));
+        return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
+            path: path.to_path_buf(),
+            msg: format!(
+                "PNG is {}x{} but its sidecar says {width}x{height}",
+                info.width, info.height
+            ),
+        }));
     }
     let (ct, bd) = (info.color_type, info.bit_depth);
     if ct != png::ColorType::Rgba || !matches!(bd, png::BitDepth::Sixteen | png::BitDepth::Eight) {
         return Err(bad(format!(
             "PNG is {ct:?} {bd:?}; a CloudMap is RGBA 16-bit"
         )));
+    }
+    if let Some(want) = &meta.image_id {
+        let got = info
+            .uncompressed_latin1_text
+            .iter()
+            .find(|t| t.keyword == IMAGE_ID_KEYWORD)
+            .map(|t| t.text.as_str());
+        if got != Some(want.as_str()) {
+            return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
+                path: path.to_path_buf(),
+                msg: format!(
+                    "PNG is not the one its sidecar names (image id {} where the sidecar says {want}): another program replaced it, or a write was cut short; run ingest again",
+                    got.unwrap_or("absent")
+                ),
+            }));
+        }
     }
     let mut buf = vec![0u8; reader.output_buffer_size()];
     reader

@@ -61,12 +61,9 @@ fn list_levels(ps: &[f64]) -> String {
 }
 
 impl Forecast {
-    /// Read `path` and decode the RH (and gh) levels `select` asks for.
+    /// Read `path` (at most [`crate::input::MAX_GRIB_BYTES`]) and decode the RH (and gh) levels `select` asks for.
     pub fn open(path: &Path, select: LevelSelect) -> Result<Forecast> {
-        let bytes = std::fs::read(path).map_err(|e| IngestError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
+        let bytes = crate::input::read_grib(path)?;
         Self::from_bytes(path, &bytes, select)
     }
 

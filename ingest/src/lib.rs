@@ -3,13 +3,19 @@
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
 //! needed → [`spline`] upsamples onto the region's pixel grid → [`cloudmap`] applies the
 //! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar.
+//!
+//! Files: [`input`] reads every input with a cap; [`output`] writes atomically, never over
+//! what is not a regular file or is an input, commits a map's PNG and sidecar as a pair, and
+//! accounts for its temporary files.
 
 pub mod cloudmap;
 pub mod encode;
 pub mod error;
 pub mod forecast;
 pub mod grib;
+pub mod input;
 pub mod meta;
+pub mod output;
 pub mod pipeline;
 pub mod region;
 pub mod spline;

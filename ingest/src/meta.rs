@@ -9,8 +9,17 @@ use thiserror::Error;
 
 use crate::region::Region;
 
-/// Sidecar format tag; bumped when a field changes meaning.
-pub const FORMAT: &str = "stratus-cloudmap/1";
+/// Sidecar format tag written now; bumped when a field changes meaning or becomes required.
+/// Version 2 adds `image_id`, which the PNG must carry (see [`crate::output::write_pair`]).
+pub const FORMAT: &str = "stratus-cloudmap/2";
+
+/// The first sidecar format, still read: no `image_id`, so the PNG is not checked against it.
+pub const FORMAT_V1: &str = "stratus-cloudmap/1";
+
+/// Layer bases and tops a sidecar may hold, metres above mean sea level: from below the
+/// lowest land (the Dead Sea shore is at −430 m) to the Kármán line. Every level a GFS file
+/// holds (up to 0.4 hPa, about 50 km) fits; a band at 10¹² m or ±10³⁰⁸ m does not.
+pub const ALTITUDE_RANGE_M: std::ops::RangeInclusive<f64> = -500.0..=100_000.0;
 
 /// Cloud layer (ISCCP convention by pressure of the level).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
@@ -117,8 +126,12 @@ pub struct SourceMeta {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CloudMapMeta {
     pub format: String,
-    /// PNG file name, relative to the sidecar's directory.
+    /// PNG file name, in the sidecar's directory (a plain name, no folders).
     pub image: String,
+    /// Identifier the PNG carries in its `stratus-image-id` text chunk (format 2): a PNG that
+    /// does not carry it is not this sidecar's. Absent in format 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_id: Option<String>,
     pub region: Region,
     pub width: u32,
     pub height: u32,
@@ -139,6 +152,109 @@ impl CloudMapMeta {
 
     pub fn layer(&self, kind: LayerKind) -> Option<&LayerMeta> {
         self.layers.iter().find(|l| l.kind == kind)
+    }
+
+    /// Check everything the renderer and scorer will trust: the format, a plain image name,
+    /// the region, the size (at most [`crate::region::MAX_SIDE`] a side), and each layer's
+    /// physical ranges (band within [`ALTITUDE_RANGE_M`] with base below top, a critical
+    /// humidity the formula accepts, the channel of its kind, coverage in 0..1), all finite.
+    /// The error names the field and why, e.g. `layers[1] (middle).top_m: 1e12 m is outside
+    /// -500..=100000 m`.
+    pub fn validate(&self) -> Result<(), String> {
+        self.validate_content()?;
+        self.validate_image()
+    }
+
+    /// The parts of [`validate`](Self::validate) that do not concern the image file: what a
+    /// map must satisfy before it is written at all.
+    pub fn validate_content(&self) -> Result<(), String> {
+        self.region.validate().map_err(|e| format!("region: {e}"))?;
+        let side = crate::region::MAX_SIDE;
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 || v > side {
+                return Err(format!("{name}: {v} px is outside 1..={side}"));
+            }
+        }
+        if self.layers.len() > 3 {
+            return Err(format!(
+                "layers: {} layers; a map has at most 3",
+                self.layers.len()
+            ));
+        }
+        for (i, l) in self.layers.iter().enumerate() {
+            let at = format!("layers[{i}] ({})", l.kind.name());
+            if self.layers[..i].iter().any(|o| o.kind == l.kind) {
+                return Err(format!("{at}: a second {} layer", l.kind.name()));
+            }
+            if l.channel != l.kind.channel() {
+                return Err(format!(
+                    "{at}.channel: {} but a {} layer is in channel {}",
+                    l.channel,
+                    l.kind.name(),
+                    l.kind.channel()
+                ));
+            }
+            for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
+                if !ALTITUDE_RANGE_M.contains(&v) {
+                    return Err(format!(
+                        "{at}.{name}: {v} m is outside {}..={} m",
+                        ALTITUDE_RANGE_M.start(),
+                        ALTITUDE_RANGE_M.end()
+                    ));
+                }
+            }
+            if l.base_m >= l.top_m {
+                return Err(format!(
+                    "{at}: base_m {} m is not below top_m {} m",
+                    l.base_m, l.top_m
+                ));
+            }
+            crate::pipeline::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
+            for (name, v) in [
+                ("mean_coverage", l.mean_coverage),
+                ("max_coverage", l.max_coverage),
+            ] {
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(format!("{at}.{name}: {v} is outside 0..=1"));
+                }
+            }
+            if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+                return Err(format!("{at}.levels_hpa: {p} hPa is not a pressure"));
+            }
+        }
+        let s = &self.source;
+        for (name, v) in [
+            ("forecast_step_h", s.forecast_step_h),
+            ("grid_di_deg", s.grid_di_deg),
+            ("grid_dj_deg", s.grid_dj_deg),
+        ] {
+            if !v.is_finite() {
+                return Err(format!("source.{name}: {v} is not a number"));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_image(&self) -> Result<(), String> {
+        let name = Path::new(&self.image);
+        let plain = !self.image.is_empty()
+            && name.file_name() == Some(name.as_os_str())
+            && !self.image.contains(['/', '\\']);
+        if !plain {
+            return Err(format!(
+                "image: {:?} is not a file name in the sidecar's folder",
+                self.image
+            ));
+        }
+        match (self.format.as_str(), &self.image_id) {
+            (FORMAT_V1, _) => Ok(()),
+            (FORMAT, Some(id)) if id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()) => {
+                Ok(())
+            }
+            (FORMAT, Some(id)) => Err(format!("image_id: {id:?} is not 32 hex digits")),
+            (FORMAT, None) => Err(format!("image_id: missing (required by {FORMAT})")),
+            (f, _) => Err(format!("format: {f:?} is not {FORMAT:?} or {FORMAT_V1:?}")),
+        }
     }
 }
 

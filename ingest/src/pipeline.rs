@@ -9,10 +9,14 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use crate::cloudmap::{coverage_to_sample, write_atomic, CloudMap, COVERAGE_FULL};
+use crate::cloudmap::{
+    coverage_to_sample, rgba16_writer, sidecar_json, CloudMap, COVERAGE_FULL, MAX_SIDE,
+};
+use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::Forecast;
 use crate::meta::{AltitudeSource, CloudMapMeta, LayerKind, LayerMeta, SourceMeta, FORMAT};
+use crate::output::write_pair;
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
 
@@ -64,6 +68,8 @@ pub struct Plan {
     interp: Interp,
     width: usize,
     height: usize,
+    /// The forecast file read, which the output must not replace.
+    source: PathBuf,
     pub meta: CloudMapMeta,
 }
 
@@ -73,6 +79,14 @@ impl Plan {
         for x in opts.rh_cr {
             validate_rh_cr(x)?;
         }
+        for side in [opts.width, opts.height] {
+            if side == 0 || side > MAX_SIDE {
+                return Err(IngestError::BadSize(format!(
+                    "each side must be 1..={MAX_SIDE} px, got {}x{}",
+                    opts.width, opts.height
+                )));
+            }
+        }
         let grid = fc.levels[0].field.grid.clone();
         let (ni, nj) = (grid.ni, grid.nj);
         let (w, h) = (opts.width as usize, opts.height as usize);
@@ -81,7 +95,7 @@ impl Plan {
         let outside = |what: String| {
             IngestError::BadRegion(format!(
                 "{what} lies outside the grid of {} (lat {}..{}, lon {}..{})",
-                fc.path.display(),
+                shown(&fc.path),
                 grid.south(),
                 grid.north(),
                 grid.west(),
@@ -140,6 +154,8 @@ impl Plan {
             });
         }
         let meta = build_meta(fc, opts, &grid)?;
+        // Refuse now, not after the work, a map the loader would refuse.
+        meta.validate_content().map_err(IngestError::BadMap)?;
         Ok(Plan {
             levels,
             rows,
@@ -148,6 +164,7 @@ impl Plan {
             interp: opts.interp,
             width: w,
             height: h,
+            source: fc.path.clone(),
             meta,
         })
     }
@@ -213,57 +230,48 @@ impl Plan {
             .collect()
     }
 
-    /// Stream the map to `png` (and its sidecar), computing bands in parallel; atomic.
+    /// Stream the map to `png_path` and its sidecar (`.json`), computing bands in parallel,
+    /// and commit them as one pair ([`crate::output::write_pair`]): on any error the previous
+    /// pair (if any) is left as it was. Neither file may be the forecast file read.
     /// `progress` is called with the number of rows done.
     pub fn write(&self, png_path: &Path, progress: &(dyn Fn(usize) + Sync)) -> Result<PathBuf> {
-        let mut meta = self.meta.clone();
-        meta.image = png_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
         let bands = self.bands();
-        let mut stats = Stats::default();
-        write_atomic(png_path, |w| {
-            let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
-            enc.set_color(png::ColorType::Rgba);
-            enc.set_depth(png::BitDepth::Sixteen);
-            enc.set_compression(png::Compression::Fast);
-            let mut wr = enc.write_header().map_err(|e| e.to_string())?;
-            let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
-            let mut done = 0;
-            // A few bands per core at a time bounds memory; order is kept by `collect`.
-            for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
-                let parts: Vec<Vec<[u16; 4]>> =
-                    chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
-                for (p, &(a, b)) in parts.iter().zip(chunk) {
-                    stats.add(p);
-                    let mut bytes = Vec::with_capacity(p.len() * 8);
-                    for t in p {
-                        for c in t {
-                            bytes.extend_from_slice(&c.to_be_bytes());
+        let stats = std::cell::RefCell::new(Stats::default());
+        write_pair(
+            png_path,
+            &[self.source.as_path()],
+            |w, id| {
+                let mut wr = rgba16_writer(w, self.width as u32, self.height as u32, id)?;
+                let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
+                let mut done = 0;
+                let mut st = Stats::default();
+                // A few bands per core at a time bounds memory; order is kept by `collect`.
+                for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
+                    let parts: Vec<Vec<[u16; 4]>> =
+                        chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
+                    for (p, &(a, b)) in parts.iter().zip(chunk) {
+                        st.add(p);
+                        let mut bytes = Vec::with_capacity(p.len() * 8);
+                        for t in p {
+                            for c in t {
+                                bytes.extend_from_slice(&c.to_be_bytes());
+                            }
                         }
+                        sw.write_all(&bytes).map_err(|e| e.to_string())?;
+                        done += b - a;
                     }
-                    sw.write_all(&bytes).map_err(|e| e.to_string())?;
-                    done += b - a;
+                    progress(done);
                 }
-                progress(done);
-            }
-            sw.finish().map_err(|e| e.to_string())
-        })?;
-        stats.apply(&mut meta);
-        let sidecar = png_path.with_extension("json");
-        let json = serde_json::to_string_pretty(&meta).map_err(|e| IngestError::Write {
-            path: sidecar.clone(),
-            msg: e.to_string(),
-        })?;
-        if let Err(e) = write_atomic(&sidecar, |w| {
-            w.write_all(json.as_bytes()).map_err(|e| e.to_string())
-        }) {
-            // Never leave a PNG without its sidecar.
-            let _ = std::fs::remove_file(png_path);
-            return Err(e);
-        }
-        Ok(sidecar)
+                sw.finish().map_err(|e| e.to_string())?;
+                *stats.borrow_mut() = st;
+                Ok(())
+            },
+            |name, id| {
+                let mut meta = self.meta.clone();
+                stats.borrow().apply(&mut meta);
+                sidecar_json(&meta, name, id, png_path)
+            },
+        )
     }
 
     pub fn height(&self) -> usize {
@@ -384,6 +392,7 @@ fn build_meta(
     Ok(CloudMapMeta {
         format: FORMAT.into(),
         image: String::new(),
+        image_id: None,
         region: opts.region,
         width: opts.width,
         height: opts.height,

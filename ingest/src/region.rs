@@ -113,10 +113,12 @@ impl Region {
     }
 }
 
-/// Largest CloudMap side accepted.
-pub const MAX_SIDE: u32 = 16384;
+/// Largest CloudMap side, in pixels: what the renderer can upload as one texture on every
+/// adapter it supports (wgpu's default limit, 8192). Ingest refuses to write a larger map and
+/// the loader refuses to read one, before decoding anything.
+pub const MAX_SIDE: u32 = 8192;
 
-/// Parse `WxH`, each side in 1..=16384.
+/// Parse `WxH`, each side in 1..=[`MAX_SIDE`].
 pub fn parse_size(s: &str) -> Result<(u32, u32), IngestError> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -164,9 +166,12 @@ mod tests {
         ] {
             assert!(Region::parse(s).is_err(), "{s}");
         }
-        for s in ["0x10", "10x0", "16385x10", "10", "ax3", "-1x4"] {
+        for s in [
+            "0x10", "10x0", "16385x10", "8193x10", "10x8193", "10", "ax3", "-1x4",
+        ] {
             assert!(parse_size(s).is_err(), "{s}");
         }
         assert_eq!(parse_size("1300x1100").unwrap(), (1300, 1100));
+        assert_eq!(parse_size("8192x8192").unwrap(), (8192, 8192));
     }
 }
