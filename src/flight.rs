@@ -266,4 +266,33 @@ mod tests {
         };
         assert!(back.validate().is_err());
     }
+
+    #[test]
+    fn work_is_bounded_before_it_starts() {
+        let span = |t1: f64| FlightPath {
+            keys: vec![key(0.0, 0.0, 0.0), key(t1, 1.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert_eq!(span(0.5).frames(4.0, 10).unwrap(), 3);
+        assert!(span(1e8).frames(10.0, DEFAULT_MAX_FRAMES).is_err());
+        assert_eq!(span(1e8).frames(10.0, u64::MAX).unwrap(), 1_000_000_001);
+        // Too long to count: an error, never a wrap to 0 frames.
+        assert!(span(1.7e308).frames(10.0, u64::MAX).is_err());
+        let wide = FlightPath {
+            keys: vec![key(-1.7e308, 0.0, 0.0), key(1.7e308, 1.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(matches!(wide.validate(), Err(PathError::TooLong(_))));
+        let many = FlightPath {
+            keys: (0..=MAX_KEYS).map(|i| key(i as f64, 0.0, 0.0)).collect(),
+            fov_deg: 60.0,
+        };
+        assert!(matches!(many.validate(), Err(PathError::TooManyKeys(_))));
+        // Angles interpolation could not handle.
+        let far = FlightPath {
+            keys: vec![key(0.0, 1e308, 0.0), key(1.0, -1e308, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(far.validate().is_err());
+    }
 }

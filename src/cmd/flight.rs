@@ -16,7 +16,7 @@ use std::process::{Command, ExitCode};
 use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
-use stratus_ingest::output::check_output;
+use stratus_ingest::output::{check_output, STALE_TEMP_AGE};
 use stratus_ingest::region::parse_size;
 
 use stratus::flight::{FlightPath, DEFAULT_MAX_FRAMES};
@@ -54,6 +54,9 @@ pub struct Args {
 /// Disk a frame is assumed to take per pixel: RGBA8 PNG frames measured 0.3–0.7 bytes a pixel
 /// at 640×360, so 1 byte is an estimate with room, not a bound (a frame could take up to 4).
 const FRAME_BYTES_PER_PIXEL: f64 = 1.0;
+
+/// The staging folder a run renders into, inside the output folder.
+const STAGING_PREFIX: &str = ".stratus-frames.";
 
 /// The MP4 ffmpeg makes of the frames.
 const MP4: &str = "flight.mp4";
@@ -226,11 +229,12 @@ fn render_and_commit(
     settings: &Settings,
 ) -> anyhow::Result<(usize, Mp4)> {
     let staging = tempfile::Builder::new()
-        .prefix(".stratus-frames.")
+        .prefix(STAGING_PREFIX)
         .rand_bytes(10)
         .tempdir_in(&a.out)
         .with_context(|| format!("{}: cannot create a staging folder", shown(&a.out)))?;
     let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
+    sweep_stale_staging(&a.out, staging.path());
     let mut r = Renderer::new(a.look.gpu()?, map);
     let pb = progress_bar(n, "frames");
     for i in 0..n {
@@ -278,6 +282,32 @@ fn render_and_commit(
         }
     }
     Ok((removed, mp4))
+}
+
+/// Staging folders a killed run left in `out` (older than the ingest library's
+/// [`STALE_TEMP_AGE`]; never this run's, never through a link).
+fn sweep_stale_staging(out: &Path, ours: &Path) {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        let stale = e
+            .file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with(STAGING_PREFIX))
+            && p != ours
+            && std::fs::symlink_metadata(&p).is_ok_and(|m| {
+                m.is_dir()
+                    && m.modified()
+                        .ok()
+                        .and_then(|t| t.elapsed().ok())
+                        .is_some_and(|age| age > STALE_TEMP_AGE)
+            });
+        if stale {
+            let _ = std::fs::remove_dir_all(&p);
+        }
+    }
 }
 
 /// `flight.mp4` in `dir` from its frames, when ffmpeg is installed.
