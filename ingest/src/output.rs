@@ -309,12 +309,7 @@ pub(crate) fn new_image_id() -> String {
 ///    reader case).
 ///
 /// The names stay `MAP.png` and `MAP.json`, as GIS tools and the docs expect.
-pub(crate) fn write_pair<P, S>(
-    png: &Path,
-    inputs: &[&Path],
-    write_png: P,
-    sidecar: S,
-) -> Result<PathBuf>
+pub fn write_pair<P, S>(png: &Path, inputs: &[&Path], write_png: P, sidecar: S) -> Result<PathBuf>
 where
     P: FnOnce(&mut BufWriter<File>, &str) -> std::result::Result<(), String>,
     S: FnOnce(&str, &str) -> Result<Vec<u8>>,
@@ -667,5 +662,34 @@ mod tests {
             "a fresh temporary (maybe a live writer's) was removed"
         );
         assert!(user.exists(), "a file that is not ours was removed");
+    }
+
+    #[test]
+    fn a_pair_waits_for_the_lock_and_the_lock_file_goes() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("m.png");
+        let json = dir.path().join("m.json");
+        let held = PairLock::acquire(&json).unwrap();
+        let lock_file = PairLock::lock_path(&json);
+        assert!(lock_file.exists());
+        std::thread::scope(|s| {
+            let writer = s.spawn(|| {
+                write_pair(
+                    &png,
+                    &[],
+                    |w, _| w.write_all(b"png").map_err(|e| e.to_string()),
+                    |_, _| Ok(b"{}".to_vec()),
+                )
+            });
+            std::thread::sleep(Duration::from_millis(300));
+            assert!(
+                !png.exists(),
+                "the pair was committed while another held its lock"
+            );
+            drop(held);
+            writer.join().unwrap().unwrap();
+        });
+        assert_eq!(fs::read(&png).unwrap(), b"png");
+        assert!(!lock_file.exists(), "the lock file stays");
     }
 }

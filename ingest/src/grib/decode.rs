@@ -21,7 +21,7 @@ impl Field {
     }
 }
 
-/// Decode one message (field) of `bytes`, the whole file [`super::scan`] read it from.
+/// Decode one message (field) of `bytes`, the whole file [`scan`](super::scan()) read it from.
 pub fn decode_values(bytes: &[u8], info: &MessageInfo) -> Result<Field, GribError> {
     let grid = validate_for_decode(bytes, info)?;
     let (index, offset) = (info.index, info.offset);

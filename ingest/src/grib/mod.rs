@@ -5,9 +5,9 @@
 //! - [`info`]: what a field's headers say ([`MessageInfo`], [`LatLonGrid`]) and how `inspect`
 //!   shows it;
 //! - [`tables`]: the WMO code tables those headers use, as enums;
-//! - [`validate`]: the checks a field must pass before its data is decoded;
-//! - [`decode`]: decoding one field (through gribberish) into a north-up [`Field`];
-//! - [`guard`]: containing the decoder's panics (gribberish 1.9 can panic on corrupted data).
+//! - `validate`: the checks a field must pass before its data is decoded;
+//! - `decode`: decoding one field (through gribberish) into a north-up [`Field`];
+//! - `guard`: containing the decoder's panics (gribberish 1.9 can panic on corrupted data).
 
 mod decode;
 mod guard;
