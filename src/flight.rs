@@ -8,10 +8,25 @@
 //! `t` is seconds along the path; positions and angles are interpolated linearly (heading the
 //! short way round), the time of day likewise where keys give it.
 
+use std::path::{Path, PathBuf};
+
 use chrono::{DateTime, Utc};
 use serde::{Deserialize, Serialize};
+use stratus_ingest::error::shown;
+use stratus_ingest::IngestError;
 
 use crate::render::Camera;
+
+/// Most keys a path may have: a keyframed path is written by hand or by a small script; ten
+/// thousand keys is hours of flight at one key a second.
+pub const MAX_KEYS: usize = 10_000;
+
+/// Largest path file read: 4 MiB, room for [`MAX_KEYS`] keys of a few hundred bytes each.
+pub const MAX_PATH_BYTES: u64 = 4 << 20;
+
+/// Default cap on the frames one `flight` run renders (`--max-frames` raises it): 10 000
+/// frames is 17 minutes at 10 fps.
+pub const DEFAULT_MAX_FRAMES: u64 = 10_000;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Key {
@@ -40,12 +55,46 @@ fn default_fov() -> f64 {
 
 #[derive(Debug, thiserror::Error)]
 pub enum PathError {
+    #[error("not a flight path: {0}")]
+    Json(String),
     #[error("the path needs at least 2 keys, it has {0}")]
     TooFewKeys(usize),
+    #[error("the path has {0} keys; at most {MAX_KEYS} are accepted")]
+    TooManyKeys(usize),
     #[error("key {0}: t must increase and be finite")]
     BadTime(usize),
+    #[error("the keys span {} s, more than a number of seconds can hold", num(*.0))]
+    TooLong(f64),
     #[error("key {0}: {1}")]
     BadKey(usize, String),
+    /// More frames than the caller allows (or than can be counted).
+    #[error("{} s at {fps} fps is {} frames, more than the limit of {max} (raise it with --max-frames)", num(*.seconds), num(*.frames))]
+    TooManyFrames {
+        seconds: f64,
+        fps: f64,
+        frames: f64,
+        max: u64,
+    },
+}
+
+/// A number for a message: as written up to a billion, in exponent form above (1.7e308 has
+/// 309 digits otherwise), `inf` as such.
+fn num(x: f64) -> String {
+    if x.is_finite() && x.abs() >= 1e9 {
+        format!("{x:.3e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// A path file that could not be used: unreadable (the error names the file) or not a valid
+/// path (named here).
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error(transparent)]
+    Read(#[from] IngestError),
+    #[error("{}: {err}", shown(.path))]
+    Bad { path: PathBuf, err: PathError },
 }
 
 fn lerp(a: f64, b: f64, f: f64) -> f64 {
@@ -59,20 +108,76 @@ fn lerp_deg(a: f64, b: f64, f: f64) -> f64 {
 }
 
 impl FlightPath {
+    /// Read a path file: at most [`MAX_PATH_BYTES`], then [`FlightPath::parse`].
+    pub fn load(path: &Path) -> Result<FlightPath, LoadError> {
+        let bytes = stratus_ingest::input::read_capped(path, MAX_PATH_BYTES, "flight path")?;
+        FlightPath::parse(&bytes).map_err(|err| LoadError::Bad {
+            path: path.to_path_buf(),
+            err,
+        })
+    }
+
+    /// Parse a path's JSON and [`validate`](Self::validate) it.
+    pub fn parse(json: &[u8]) -> Result<FlightPath, PathError> {
+        let p: FlightPath =
+            serde_json::from_slice(json).map_err(|e| PathError::Json(e.to_string()))?;
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Check what sampling relies on: 2..=[`MAX_KEYS`] keys with finite, increasing `t`
+    /// spanning a finite time, and every key a camera that can be rendered, with the angles
+    /// interpolation works on (longitude and heading within ±360°, pitch within ±90°).
     pub fn validate(&self) -> Result<(), PathError> {
         if self.keys.len() < 2 {
             return Err(PathError::TooFewKeys(self.keys.len()));
         }
+        if self.keys.len() > MAX_KEYS {
+            return Err(PathError::TooManyKeys(self.keys.len()));
+        }
         for (i, k) in self.keys.iter().enumerate() {
             if !k.t.is_finite() || (i > 0 && k.t <= self.keys[i - 1].t) {
                 return Err(PathError::BadTime(i));
+            }
+            for (name, v, limit) in [
+                ("lon", k.lon, 360.0),
+                ("heading", k.heading, 360.0),
+                ("pitch", k.pitch, 90.0),
+            ] {
+                if !(-limit..=limit).contains(&v) {
+                    return Err(PathError::BadKey(
+                        i,
+                        format!("{name} {v} is outside -{limit}..={limit}"),
+                    ));
+                }
             }
             let mut c = Camera::new(k.lat, k.lon, k.alt_m, k.heading, k.pitch);
             c.fov_deg = self.fov_deg;
             c.validate()
                 .map_err(|e| PathError::BadKey(i, e.to_string()))?;
         }
+        let d = self.duration();
+        if !d.is_finite() {
+            return Err(PathError::TooLong(d));
+        }
         Ok(())
+    }
+
+    /// Frames a run at `fps` renders (one at each key time step, both ends included), refused
+    /// above `max` — checked in floating point, so a span too long to count is refused, never
+    /// wrapped to a small number.
+    pub fn frames(&self, fps: f64, max: u64) -> Result<u64, PathError> {
+        let seconds = self.duration();
+        let frames = (seconds * fps).floor() + 1.0;
+        if !(frames.is_finite() && frames >= 1.0 && frames <= max as f64) {
+            return Err(PathError::TooManyFrames {
+                seconds,
+                fps,
+                frames,
+                max,
+            });
+        }
+        Ok(frames as u64)
     }
 
     /// Seconds from the first key to the last.
@@ -160,5 +265,34 @@ mod tests {
             fov_deg: 60.0,
         };
         assert!(back.validate().is_err());
+    }
+
+    #[test]
+    fn work_is_bounded_before_it_starts() {
+        let span = |t1: f64| FlightPath {
+            keys: vec![key(0.0, 0.0, 0.0), key(t1, 1.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert_eq!(span(0.5).frames(4.0, 10).unwrap(), 3);
+        assert!(span(1e8).frames(10.0, DEFAULT_MAX_FRAMES).is_err());
+        assert_eq!(span(1e8).frames(10.0, u64::MAX).unwrap(), 1_000_000_001);
+        // Too long to count: an error, never a wrap to 0 frames.
+        assert!(span(1.7e308).frames(10.0, u64::MAX).is_err());
+        let wide = FlightPath {
+            keys: vec![key(-1.7e308, 0.0, 0.0), key(1.7e308, 1.0, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(matches!(wide.validate(), Err(PathError::TooLong(_))));
+        let many = FlightPath {
+            keys: (0..=MAX_KEYS).map(|i| key(i as f64, 0.0, 0.0)).collect(),
+            fov_deg: 60.0,
+        };
+        assert!(matches!(many.validate(), Err(PathError::TooManyKeys(_))));
+        // Angles interpolation could not handle.
+        let far = FlightPath {
+            keys: vec![key(0.0, 1e308, 0.0), key(1.0, -1e308, 0.0)],
+            fov_deg: 60.0,
+        };
+        assert!(far.validate().is_err());
     }
 }

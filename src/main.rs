@@ -1,9 +1,12 @@
 //! The `stratus` command line: inspect, ingest, render, score, fly.
 
+use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod cleanup;
+#[macro_use]
 mod cmd;
 
 #[derive(Parser)]
@@ -43,7 +46,15 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        // Colour codes only for a terminal: a log file or a CI capture gets plain text.
+        .with_ansi(std::io::stderr().is_terminal())
         .init();
+    if let Err(e) = cleanup::install() {
+        // Still usable: only an interrupted write would leave its temporary behind.
+        tracing::warn!(
+            "cannot handle INT/TERM/HUP ({e}): an interrupted run may leave temporary files"
+        );
+    }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) if !e.use_stderr() => {
@@ -55,7 +66,7 @@ fn main() -> ExitCode {
             // Usage errors in one line, like every other error.
             let text = e.to_string();
             let first = text.lines().next().unwrap_or("bad arguments");
-            eprintln!("{first} (see stratus --help)");
+            let _ = writeln!(std::io::stderr().lock(), "{first} (see stratus --help)");
             return ExitCode::from(2);
         }
     };
@@ -76,11 +87,22 @@ fn main() -> ExitCode {
         Command::Flight(a) => cmd::flight::run(a),
         Command::Fly(a) => cmd::fly::run(a),
     };
+    if let Some(sig) = cleanup::received() {
+        // The work stopped because of the signal: finish as the handler does, quietly.
+        cleanup::shut_down(sig);
+    }
     match result {
         Ok(code) => code,
+        Err(e) if cmd::is_broken_pipe(&e) => {
+            // The reader of stdout has gone (`stratus inspect G | head -1`): nothing to report
+            // to, and not a success either (a gate's verdict may be unread), so the shell's
+            // code for a pipe writer stopped by SIGPIPE.
+            ExitCode::from(cmd::BROKEN_PIPE_EXIT)
+        }
         Err(e) => {
             // One line: the chain of causes joined, the file named by the innermost error.
-            eprintln!("error: {e:#}");
+            // Written without panicking should stderr be closed too.
+            let _ = writeln!(std::io::stderr().lock(), "error: {e:#}");
             ExitCode::from(2)
         }
     }

@@ -383,7 +383,9 @@ pub fn fly(opts: FlyOptions) -> anyhow::Result<()> {
     el.run_app(&mut app)
         .map_err(|e| anyhow!("window event loop: {e}"))?;
     if let (Some(r), Some(_)) = (&app.run, app.opts.frames) {
-        println!("{}", summary(r));
+        // Not println!: a closed stdout must not panic the window's last step.
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), "{}", summary(r));
     }
     app.result
 }

@@ -4,7 +4,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
@@ -12,6 +11,7 @@ use stratus::picture::write_png;
 use stratus::render::{gpu, Gpu, Renderer};
 use stratus::{bench, scenes};
 
+use super::files::check_out;
 use super::options::progress_bar;
 
 #[derive(clap::Args, Debug)]
@@ -41,6 +41,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let error_size = parse_size(&a.error_size)?;
     if a.repeats == 0 || a.repeats > 100 {
         anyhow::bail!("--repeats {} must be in 1..=100", a.repeats);
+    }
+    if let Some(c) = &a.chart {
+        // Before minutes of benchmarking.
+        check_out(c, &[])?;
     }
     let sample = scenes::synthetic();
     let map: CloudMap = sample.map()?;
@@ -76,14 +80,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             img.width(),
             img.height(),
             image::ExtendedColorType::Rgb8,
-        )
-        .with_context(|| c.display().to_string())?;
+        )?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        out!("{}", serde_json::to_string_pretty(&rows)?)?;
     } else {
-        println!("adapter: {}\n", gpu::describe(&r.gpu.info));
-        print!("{}", bench::table(&rows));
+        out!("adapter: {}\n", gpu::describe(&r.gpu.info))?;
+        out!("{}", bench::table(&rows).trim_end_matches('\n'))?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -10,7 +10,9 @@ use stratus::picture::save_png;
 use stratus::render::Renderer;
 use stratus::{scenes, score};
 use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::error::shown;
 
+use super::files::check_out;
 use super::options::{progress_bar, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -32,26 +34,33 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let t0 = Instant::now();
     let sample = scenes::demo();
     let grib = a.grib.clone().unwrap_or_else(|| sample.path());
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    let views = sample.scenes_named(&sample.demo_views);
+    // Every output, before any work: none may be the forecast read, or other than a file.
+    let outputs = ["cloudmap.png", "cloudmap.json", "score-diff.png"]
+        .map(String::from)
+        .into_iter()
+        .chain(views.iter().map(|s| format!("{}.png", s.name)));
+    for name in outputs {
+        check_out(&a.out.join(name), std::slice::from_ref(&grib))?;
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", shown(&a.out)))?;
     let plan = sample.plan(&grib)?;
     let pb = progress_bar(plan.height() as u64, "ingest rows");
     let png = a.out.join("cloudmap.png");
     let sidecar = plan.write(&png, &|d| pb.set_position(d as u64))?;
     pb.finish_and_clear();
     let map = CloudMap::load(&sidecar)?;
-    println!(
+    out!(
         "ingested {} → {} ({}×{})",
-        grib.display(),
-        sidecar.display(),
+        shown(&grib),
+        shown(&sidecar),
         map.meta.width,
         map.meta.height
-    );
+    )?;
 
-    let settings = a.look.settings(&map)?;
+    let settings = a.look.settings(&map, &sidecar)?;
     let (w, h) = stratus_ingest::region::parse_size(&a.size)?;
     let mut r = Renderer::new(a.look.gpu()?, &map);
-    let views = sample.scenes_named(&sample.demo_views);
     let pb = progress_bar(views.len() as u64, "render views");
     for scene in views {
         let mut s = settings.clone();
@@ -60,16 +69,16 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         let out = r.render(&scene.view, w, h, &s)?;
         let path = a.out.join(format!("{}.png", scene.name));
-        save_png(&path, &out.to_image()).with_context(|| path.display().to_string())?;
+        save_png(&path, &out.to_image())?;
         pb.inc(1);
-        println!(
+        out!(
             "{}: {:.0} ms{}",
-            path.display(),
+            shown(&path),
             out.timings.wall_ms,
             out.timings
                 .march_ms
                 .map_or(String::new(), |m| format!(" (march {m:.1} ms GPU)"))
-        );
+        )?;
     }
     pb.finish_and_clear();
     let (sw, sh) = score::default_size(&map);
@@ -82,9 +91,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         (score::RENDER_THRESHOLD, score::MAP_THRESHOLD),
     )?;
     let diff = a.out.join("score-diff.png");
-    save_png(&diff, &report.diff_picture()).with_context(|| diff.display().to_string())?;
+    save_png(&diff, &report.diff_picture())?;
     let m = &report.total.similarity;
-    println!(
+    out!(
         "Dice {:.4} (IoU {:.4}, precision {:.4}, recall {:.4}) top-down {}×{} vs the map; diff in {}",
         m.dice,
         m.iou,
@@ -92,8 +101,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         m.recall,
         sw,
         sh,
-        diff.display()
-    );
-    println!("done in {:.1} s", t0.elapsed().as_secs_f64());
+        shown(&diff)
+    )?;
+    out!("done in {:.1} s", t0.elapsed().as_secs_f64())?;
     Ok(ExitCode::SUCCESS)
 }

@@ -1,17 +1,31 @@
 //! `stratus flight`: a keyframed path rendered headless to a PNG sequence (and MP4 with ffmpeg).
+//!
+//! What the output folder holds afterwards (docs/files.md):
+//! - Before anything is rendered, the frame count and the disk it needs are checked against
+//!   `--max-frames` and the folder's free space.
+//! - Frames are rendered into a hidden staging folder inside the output folder, and only moved
+//!   to `frame-NNNNN.png` when every frame (and the MP4) is done. A run that fails or is
+//!   interrupted leaves the folder as it was (and removes the folder if it created it).
+//! - After a success the folder holds exactly this run's frames: `frame-NNNNN.png` files of an
+//!   earlier, longer run are removed; no other file is touched.
 
-use std::path::PathBuf;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
 use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::error::shown;
+use stratus_ingest::output::{check_output, STALE_TEMP_AGE};
 use stratus_ingest::region::parse_size;
 
-use stratus::flight::FlightPath;
+use stratus::flight::{FlightPath, DEFAULT_MAX_FRAMES};
 use stratus::picture::save_png;
-use stratus::render::{Renderer, View};
+use stratus::render::{Renderer, Settings, View};
 
+use super::files::{check_out, map_files};
 use super::options::{progress_bar, LookOpts};
+use crate::cleanup::{self, Removal};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -29,26 +43,199 @@ pub struct Args {
     /// Frames per second of path time.
     #[arg(long, default_value_t = 10.0)]
     pub fps: f64,
+    /// Refuse a path that makes more frames than this (checked before anything is rendered).
+    #[arg(long, default_value_t = DEFAULT_MAX_FRAMES,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_frames: u64,
     #[command(flatten)]
     pub look: LookOpts,
 }
 
+/// Disk a frame is assumed to take per pixel: RGBA8 PNG frames measured 0.3–0.7 bytes a pixel
+/// at 640×360, so 1 byte is an estimate with room, not a bound (a frame could take up to 4).
+const FRAME_BYTES_PER_PIXEL: f64 = 1.0;
+
+/// The staging folder a run renders into, inside the output folder.
+const STAGING_PREFIX: &str = ".stratus-frames.";
+
+/// The MP4 ffmpeg makes of the frames.
+const MP4: &str = "flight.mp4";
+
+fn frame_name(i: u64) -> String {
+    format!("frame-{i:05}.png")
+}
+
+/// The frame number of a name this command writes (`frame-00042.png`), exactly as it writes
+/// it; anything else is not ours.
+fn frame_number(name: &OsStr) -> Option<u64> {
+    let n: u64 = name
+        .to_str()?
+        .strip_prefix("frame-")?
+        .strip_suffix(".png")?
+        .parse()
+        .ok()?;
+    (name.to_str() == Some(frame_name(n).as_str())).then_some(n)
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let text = std::fs::read_to_string(&a.path).with_context(|| format!("{}", a.path.display()))?;
-    let path: FlightPath = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a flight path", a.path.display()))?;
-    path.validate()
-        .with_context(|| format!("{}", a.path.display()))?;
+    // Everything that can be checked without rendering, before anything is created.
     if !(a.fps > 0.0 && a.fps <= 240.0) {
         anyhow::bail!("--fps {} must be in (0, 240]", a.fps);
     }
-    let map = CloudMap::load(&a.map)?;
-    let settings = a.look.settings(&map)?;
     let (w, h) = parse_size(&a.size)?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
-    let n = (path.duration() * a.fps).floor() as u64 + 1;
-    let mut r = Renderer::new(a.look.gpu()?, &map);
+    let path = FlightPath::load(&a.path)?;
+    let n = path
+        .frames(a.fps, a.max_frames)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", shown(&a.path)))?;
+    let mut inputs = map_files(&a.map);
+    inputs.push(a.path.clone());
+    check_folder(&a.out, &inputs, n)?;
+    check_space(&a.out, n, w, h)?;
+    let map = CloudMap::load(&a.map)?;
+    let settings = a.look.settings(&map, &a.map)?;
+
+    let created = create_folder(&a.out)?;
+    let result = render_and_commit(&a, &path, n, (w, h), &map, &settings);
+    if result.is_err() {
+        // A folder this run created goes too (it is empty: the staging folder is gone).
+        for d in created.iter().rev() {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
+    let (removed, mp4) = result?;
+    let last = n - 1;
+    let frames = if n == 1 {
+        format!("1 frame {}", frame_name(0))
+    } else {
+        format!("{n} frames frame-{:05}..{last:05}.png", 0)
+    };
+    let earlier = if removed > 0 {
+        format!("; removed {removed} frame(s) of an earlier, longer run")
+    } else {
+        String::new()
+    };
+    out!("wrote {frames} to {}{earlier}", shown(&a.out))?;
+    match mp4 {
+        Mp4::Made => out!("{}", shown(&a.out.join(MP4)))?,
+        Mp4::Failed => {
+            eprintln!("ffmpeg failed; the PNG frames are complete (no {MP4} written)")
+        }
+        Mp4::NoFfmpeg => out!("(ffmpeg not found: PNG frames only)")?,
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The output folder must be a folder (or absent), and the names this run writes there
+/// absent or regular files that are none of the inputs.
+fn check_folder(out: &Path, inputs: &[PathBuf], n: u64) -> anyhow::Result<()> {
+    match std::fs::metadata(out) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => anyhow::bail!("{}: --out must be a folder; it is a file", shown(out)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => anyhow::bail!("{}: cannot use as the output folder: {e}", shown(out)),
+    }
+    for i in 0..n {
+        check_out(&out.join(frame_name(i)), inputs)?;
+    }
+    check_out(&out.join(MP4), inputs)?;
+    // Frames of an earlier run are removed after a success: none may be an input either.
+    for e in std::fs::read_dir(out).with_context(|| format!("{}: cannot list", shown(out)))? {
+        let e = e.with_context(|| format!("{}: cannot list", shown(out)))?;
+        if frame_number(&e.file_name()).is_some() {
+            check_out(&e.path(), inputs)?;
+        }
+    }
+    Ok(())
+}
+
+/// Refuse a run whose frames would not fit on the output folder's file system (estimated with
+/// [`FRAME_BYTES_PER_PIXEL`]), before any is rendered.
+fn check_space(out: &Path, n: u64, w: u32, h: u32) -> anyhow::Result<()> {
+    let need = n as f64 * w as f64 * h as f64 * FRAME_BYTES_PER_PIXEL;
+    let Some(free) = free_bytes(out) else {
+        return Ok(());
+    };
+    if need > free as f64 {
+        anyhow::bail!(
+            "{}: {n} frames of {w}x{h} need about {:.1} MiB; the file system has {:.1} MiB free (fewer frames, a lower --fps or a smaller --size)",
+            shown(out),
+            need / (1 << 20) as f64,
+            free as f64 / (1 << 20) as f64
+        );
+    }
+    Ok(())
+}
+
+/// Free bytes on the file system `path` is (or would be created) on, where the OS says.
+fn free_bytes(path: &Path) -> Option<u64> {
+    let existing = path.ancestors().find(|p| {
+        let p = if p.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            p
+        };
+        p.exists()
+    })?;
+    let existing = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
+    #[cfg(unix)]
+    {
+        let s = rustix::fs::statvfs(existing).ok()?;
+        Some(s.f_bavail.saturating_mul(s.f_frsize))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = existing;
+        None
+    }
+}
+
+/// Create `out` and any missing parents; returns the folders created, outermost first, each
+/// removed on a signal if still empty.
+fn create_folder(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut missing: Vec<PathBuf> = out
+        .ancestors()
+        .filter(|p| !p.as_os_str().is_empty())
+        .take_while(|p| std::fs::symlink_metadata(p).is_err())
+        .map(Path::to_path_buf)
+        .collect();
+    missing.reverse();
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", shown(out)))?;
+    for d in &missing {
+        // Kept tracked for the rest of the run: these are removed on a signal when empty.
+        std::mem::forget(cleanup::track_dir(d, Removal::IfEmpty));
+    }
+    Ok(missing)
+}
+
+enum Mp4 {
+    Made,
+    Failed,
+    NoFfmpeg,
+}
+
+/// Render every frame into a staging folder inside `out`, make the MP4 there, then move them
+/// into place and remove frames of an earlier run beyond this one's. Returns how many of
+/// those were removed.
+fn render_and_commit(
+    a: &Args,
+    path: &FlightPath,
+    n: u64,
+    (w, h): (u32, u32),
+    map: &CloudMap,
+    settings: &Settings,
+) -> anyhow::Result<(usize, Mp4)> {
+    let staging = tempfile::Builder::new()
+        .prefix(STAGING_PREFIX)
+        .rand_bytes(10)
+        .tempdir_in(&a.out)
+        .with_context(|| format!("{}: cannot create a staging folder", shown(&a.out)))?;
+    let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
+    sweep_stale_staging(&a.out, staging.path());
+    let mut r = Renderer::new(a.look.gpu()?, map);
     let pb = progress_bar(n, "frames");
     for i in 0..n {
         let (cam, time) = path.at(path.keys[0].t + i as f64 / a.fps);
@@ -57,44 +244,124 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             s.time = t;
         }
         s.frame_index = i as u32;
-        let out = r.render(&View::Perspective(cam), w, h, &s)?;
-        let file = a.out.join(format!("frame-{i:05}.png"));
-        save_png(&file, &out.to_image()).with_context(|| file.display().to_string())?;
+        let frame = r.render(&View::Perspective(cam), w, h, &s)?;
+        save_png(&staging.path().join(frame_name(i)), &frame.to_image())?;
         pb.inc(1);
     }
     pb.finish_and_clear();
-    println!("{n} frames in {}", a.out.display());
+    let mp4 = make_mp4(staging.path(), a.fps);
+
+    let _commit = cleanup::commit_guard();
+    // Checked again: something may have appeared under these names while we rendered.
+    for i in 0..n {
+        check_output(&a.out.join(frame_name(i)))?;
+    }
+    for i in 0..n {
+        let name = frame_name(i);
+        let to = a.out.join(&name);
+        std::fs::rename(staging.path().join(&name), &to)
+            .with_context(|| format!("{}: cannot move the frame into place", shown(&to)))?;
+    }
+    if matches!(mp4, Mp4::Made) {
+        let to = a.out.join(MP4);
+        check_output(&to)?;
+        std::fs::rename(staging.path().join(MP4), &to)
+            .with_context(|| format!("{}: cannot move into place", shown(&to)))?;
+    }
+    let mut removed = 0;
+    for e in std::fs::read_dir(&a.out)
+        .with_context(|| format!("{}: cannot list", shown(&a.out)))?
+        .flatten()
+    {
+        let is_file = e.file_type().is_ok_and(|t| t.is_file());
+        if is_file
+            && frame_number(&e.file_name()).is_some_and(|k| k >= n)
+            && std::fs::remove_file(e.path()).is_ok()
+        {
+            removed += 1;
+        }
+    }
+    Ok((removed, mp4))
+}
+
+/// Staging folders a killed run left in `out` (older than the ingest library's
+/// [`STALE_TEMP_AGE`]; never this run's, never through a link).
+fn sweep_stale_staging(out: &Path, ours: &Path) {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        let stale = e
+            .file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with(STAGING_PREFIX))
+            && p != ours
+            && std::fs::symlink_metadata(&p).is_ok_and(|m| {
+                m.is_dir()
+                    && m.modified()
+                        .ok()
+                        .and_then(|t| t.elapsed().ok())
+                        .is_some_and(|age| age > STALE_TEMP_AGE)
+            });
+        if stale {
+            let _ = std::fs::remove_dir_all(&p);
+        }
+    }
+}
+
+/// `flight.mp4` in `dir` from its frames, when ffmpeg is installed.
+fn make_mp4(dir: &Path, fps: f64) -> Mp4 {
     let ffmpeg = Command::new("ffmpeg")
         .arg("-version")
         .output()
         .is_ok_and(|o| o.status.success());
-    if ffmpeg {
-        let mp4 = a.out.join("flight.mp4");
-        let status = Command::new("ffmpeg")
-            .args([
-                "-y",
-                "-loglevel",
-                "error",
-                "-framerate",
-                &a.fps.to_string(),
-                "-i",
-            ])
-            .arg(a.out.join("frame-%05d.png"))
-            .args([
-                "-pix_fmt",
-                "yuv420p",
-                "-vf",
-                "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-            ])
-            .arg(&mp4)
-            .status()?;
-        if status.success() {
-            println!("{}", mp4.display());
-        } else {
-            eprintln!("ffmpeg failed; the PNG frames are complete");
-        }
-    } else {
-        println!("(ffmpeg not found: PNG frames only)");
+    if !ffmpeg {
+        return Mp4::NoFfmpeg;
     }
-    Ok(ExitCode::SUCCESS)
+    let status = Command::new("ffmpeg")
+        .args([
+            "-y",
+            "-loglevel",
+            "error",
+            "-framerate",
+            &fps.to_string(),
+            "-i",
+        ])
+        .arg(dir.join("frame-%05d.png"))
+        .args([
+            "-pix_fmt",
+            "yuv420p",
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+        ])
+        .arg(dir.join(MP4))
+        .status();
+    if status.is_ok_and(|s| s.success()) {
+        Mp4::Made
+    } else {
+        Mp4::Failed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_our_frame_names_are_ours() {
+        assert_eq!(frame_number(OsStr::new("frame-00042.png")), Some(42));
+        assert_eq!(frame_number(OsStr::new("frame-123456.png")), Some(123456));
+        for theirs in [
+            "frame-42.png",
+            "frame-000042.png",
+            "frame-00042.png.bak",
+            "my-frame-00042.png",
+            "frame-0004a.png",
+            "frame-+0042.png",
+            "flight.mp4",
+        ] {
+            assert_eq!(frame_number(OsStr::new(theirs)), None, "{theirs}");
+        }
+    }
 }

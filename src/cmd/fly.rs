@@ -9,6 +9,7 @@ use stratus_ingest::region::parse_size;
 use stratus::app::{fly, FlyOptions};
 use stratus::render::Preset;
 
+use super::files::{check_out, map_files};
 use super::options::{progress_bar, IngestOpts};
 
 #[derive(clap::Args, Debug)]
@@ -41,6 +42,14 @@ fn is_json(p: &std::path::Path) -> bool {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.frames == Some(0) {
         anyhow::bail!("--frames must be at least 1");
+    }
+    if let Some(shot) = &a.screenshot {
+        let inputs = if is_json(&a.input) {
+            map_files(&a.input)
+        } else {
+            vec![a.input.clone()]
+        };
+        check_out(shot, &inputs)?;
     }
     let size = parse_size(&a.window)?;
     let (map, plan) = if is_json(&a.input) {

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
-use stratus_ingest::grib;
+use stratus_ingest::error::shown;
+use stratus_ingest::{grib, input};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -13,16 +13,22 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let bytes = std::fs::read(&args.file)
-        .with_context(|| format!("{}: cannot read", args.file.display()))?;
-    let msgs = grib::scan(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
-    println!(
+    // Capped like every GRIB read: `/dev/zero` or a huge file is refused, not held.
+    let bytes = input::read_grib(&args.file)?;
+    let msgs = grib::scan(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", shown(&args.file)))?;
+    out!(
         "{:>6} {:>9}  {:<7} {:<6} {:<28} {:<44} {:<24} reference step",
-        "#", "offset", "d.c.n", "name", "level", "grid", "packing"
-    );
+        "#",
+        "offset",
+        "d.c.n",
+        "name",
+        "level",
+        "grid",
+        "packing"
+    )?;
     for m in &msgs {
-        println!("{m}");
+        out!("{m}")?;
     }
-    println!("{} messages in {}", msgs.len(), args.file.display());
+    out!("{} messages in {}", msgs.len(), shown(&args.file))?;
     Ok(ExitCode::SUCCESS)
 }

@@ -62,14 +62,17 @@ pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
 }
 
 impl LookOpts {
-    pub fn settings(&self, map: &CloudMap) -> anyhow::Result<Settings> {
+    /// The settings for `map`, read from `source` (its sidecar, or the GRIB file it was
+    /// ingested from in memory), which errors about the map name.
+    pub fn settings(&self, map: &CloudMap, source: &Path) -> anyhow::Result<Settings> {
         let time = match &self.time {
             Some(t) => parse_time(t)?,
-            None => map
-                .meta
-                .source
-                .valid_time
-                .context("the map has no valid time: give --time")?,
+            None => map.meta.source.valid_time.with_context(|| {
+                format!(
+                    "{}: the map has no valid_time: give --time",
+                    stratus_ingest::error::shown(source)
+                )
+            })?,
         };
         let mut s = Settings::new(self.preset, time);
         if let Some(d) = &self.sun_dir {
@@ -116,6 +119,12 @@ impl LookOpts {
 }
 
 pub fn parse_camera(s: &str, heading: f64, pitch: f64, fov: f64) -> anyhow::Result<Camera> {
+    // Named as given: a NaN heading would otherwise surface as a view direction of zero length.
+    for (name, v) in [("--heading", heading), ("--pitch", pitch), ("--fov", fov)] {
+        if !v.is_finite() {
+            anyhow::bail!("{name} {v} must be a finite number");
+        }
+    }
     let v = parse_numbers(s, 3, "--camera")?;
     let mut cam = Camera::new(v[0], v[1], v[2], heading, pitch);
     cam.fov_deg = fov;

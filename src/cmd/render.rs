@@ -3,12 +3,12 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use stratus::picture::save_png;
 use stratus::render::{Renderer, View};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
+use super::files::{check_out, map_files};
 use super::options::{parse_camera, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -48,8 +48,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    check_out(&a.out, &map_files(&a.map))?;
     let map = CloudMap::load(&a.map)?;
-    let settings = a.look.settings(&map)?;
+    let settings = a.look.settings(&map, &a.map)?;
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,
         (Some(c), false) => View::Perspective(parse_camera(c, a.heading, a.pitch, a.fov)?),
@@ -66,32 +67,32 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         runs.sort_by(|x, y| x.timings.wall_ms.total_cmp(&y.timings.wall_ms));
         out = runs.swap_remove(runs.len() / 2);
     }
-    save_png(&a.out, &out.to_image()).with_context(|| format!("{}", a.out.display()))?;
+    save_png(&a.out, &out.to_image())?;
     if a.timings {
-        print_timings(&out);
+        print_timings(&out)?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
 /// GPU times are absent where the adapter has no (trustworthy) timestamps: CPU drivers.
-pub fn print_timings(out: &stratus::render::Output) {
+pub fn print_timings(out: &stratus::render::Output) -> std::io::Result<()> {
     let t = out.timings;
     let f = |v: Option<f64>| {
         v.map_or("n/a (no GPU timestamps: see wall)".to_string(), |v| {
             format!("{v:.3} ms")
         })
     };
-    println!(
+    out!(
         "march {}  present {}  wall {:.1} ms  ({}×{})",
         f(t.march_ms),
         f(t.present_ms),
         t.wall_ms,
         out.width,
         out.height
-    );
+    )?;
     let s = out.stats;
     let px = s.rays.max(1) as f64;
-    println!(
+    out!(
         "per pixel: {:.1} steps, {:.1} density samples, {:.1} light samples; skipped {}, early exits {}, samples outside region {}, rays cut short {}",
         s.steps as f64 / px,
         s.density_samples as f64 / px,
@@ -100,5 +101,5 @@ pub fn print_timings(out: &stratus::render::Output) {
         s.early_exits,
         s.outside_samples,
         s.cut_rays
-    );
+    )
 }

@@ -3,14 +3,15 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::error::shown;
 use stratus_ingest::region::parse_size;
 
 use stratus::picture::save_png;
 use stratus::render::Renderer;
 use stratus::score::{self, Report};
 
+use super::files::{check_out, map_files};
 use super::options::{IngestOpts, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -40,8 +41,8 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
-    /// Exit 1 when the total DSC is below this (the CI gate).
-    #[arg(long)]
+    /// Exit 1 when the total DSC is below this (the CI gate); a DSC, so in 0..=1.
+    #[arg(long, allow_negative_numbers = true)]
     pub min_dice: Option<f64>,
 }
 
@@ -57,18 +58,29 @@ pub fn load_or_ingest(
     }
 }
 
-pub fn print_report(r: &Report) {
-    println!(
+pub fn print_report(r: &Report) -> std::io::Result<()> {
+    out!(
         "{} top-down {}×{} ({} preset), render opacity > {} vs map coverage > {}",
-        r.map, r.width, r.height, r.preset, r.render_threshold, r.map_threshold
-    );
-    println!(
+        r.map,
+        r.width,
+        r.height,
+        r.preset,
+        r.render_threshold,
+        r.map_threshold
+    )?;
+    out!(
         "{:<8} {:>7} {:>7} {:>9} {:>7} {:>9} {:>9}",
-        "layer", "DSC", "IoU", "precision", "recall", "render px", "map px"
-    );
+        "layer",
+        "DSC",
+        "IoU",
+        "precision",
+        "recall",
+        "render px",
+        "map px"
+    )?;
     for s in std::iter::once(&r.total).chain(&r.layers) {
         let m = &s.similarity;
-        println!(
+        out!(
             "{:<8} {:>7.4} {:>7.4} {:>9.4} {:>7.4} {:>9} {:>9}{}",
             s.layer,
             m.dice,
@@ -80,8 +92,9 @@ pub fn print_report(r: &Report) {
             s.note
                 .as_ref()
                 .map_or(String::new(), |n| format!("  ({n})"))
-        );
+        )?;
     }
+    Ok(())
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -90,13 +103,31 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             anyhow::bail!("--{name}-threshold {t} must be in 0..1");
         }
     }
-    if let Some(d) = &a.diff {
-        if d.extension().and_then(|e| e.to_str()) != Some("png") {
-            anyhow::bail!("{}: --diff must be a .png file", d.display());
+    if let Some(min) = a.min_dice {
+        // NaN compares false with everything, so it would pass every gate.
+        if !(0.0..=1.0).contains(&min) {
+            anyhow::bail!("--min-dice {min} must be a number in 0..=1 (a DSC)");
         }
     }
+    let inputs = match (&a.map, &a.grib) {
+        (Some(m), _) => map_files(m),
+        (None, Some(g)) => vec![g.clone()],
+        (None, None) => vec![],
+    };
+    if let Some(d) = &a.diff {
+        if d.extension().and_then(|e| e.to_str()) != Some("png") {
+            anyhow::bail!("{}: --diff must be a .png file", shown(d));
+        }
+        check_out(d, &inputs)?;
+    }
     let map = load_or_ingest(&a.map, &a.grib, &a.ingest)?;
-    let settings = a.look.settings(&map)?;
+    let source = a
+        .map
+        .as_ref()
+        .or(a.grib.as_ref())
+        .cloned()
+        .unwrap_or_default();
+    let settings = a.look.settings(&map, &source)?;
     let (w, h) = match &a.score_size {
         Some(s) => parse_size(s)?,
         None => score::default_size(&map),
@@ -112,15 +143,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     )?;
     report.preset = a.look.preset.name().into();
     if let Some(src) = a.map.as_ref().or(a.grib.as_ref()) {
-        report.map = src.display().to_string();
+        report.map = shown(src).to_string();
     }
     if let Some(d) = &a.diff {
-        save_png(d, &report.diff_picture()).with_context(|| d.display().to_string())?;
+        save_png(d, &report.diff_picture())?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        out!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print_report(&report);
+        print_report(&report)?;
     }
     if let Some(min) = a.min_dice {
         if report.total.similarity.dice < min {
