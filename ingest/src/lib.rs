@@ -19,6 +19,8 @@ pub mod output;
 pub mod pipeline;
 pub mod region;
 pub mod spline;
+pub mod structure;
+pub mod weather;
 
 pub use cloudmap::CloudMap;
 pub use error::{IngestError, Result};

@@ -10,15 +10,20 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::cloudmap::{
-    coverage_to_sample, rgba16_writer, sidecar_json, CloudMap, COVERAGE_FULL, MAX_SIDE,
+    coverage_to_sample, extra_path, extra_writer, file_name, rgba16_writer, sidecar_json, CloudMap,
+    COVERAGE_FULL, MAX_SIDE,
 };
 use crate::error::shown;
 use crate::error::{IngestError, Result};
-use crate::forecast::Forecast;
-use crate::meta::{AltitudeSource, CloudMapMeta, LayerKind, LayerMeta, SourceMeta, FORMAT};
-use crate::output::write_pair;
+use crate::forecast::{Forecast, RhLevel};
+use crate::meta::{
+    AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta, FORMAT,
+};
+use crate::output::{write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
+use crate::weather::pixels::{PixelSampler, StructureStats};
+use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
 
 /// What the user asked of one ingest.
 #[derive(Debug, Clone)]
@@ -71,6 +76,11 @@ pub struct Plan {
     /// The forecast file read, which the output must not replace.
     source: PathBuf,
     pub meta: CloudMapMeta,
+    /// Per-pixel structure, types and winds (issue 13), and what recomputes it when rh_cr
+    /// changes (the RH-column source depends on it).
+    sampler: PixelSampler,
+    rh: Vec<RhLevel>,
+    weather: WeatherInputs,
 }
 
 impl Plan {
@@ -156,7 +166,21 @@ impl Plan {
         let meta = build_meta(fc, opts, &grid)?;
         // Refuse now, not after the work, a map the loader would refuse.
         meta.validate_content().map_err(IngestError::BadMap)?;
+        let structure =
+            GridStructure::compute(&fc.levels, &fc.weather, &layer_specs(&meta), ni, nj);
+        let sampler = PixelSampler::new(
+            structure,
+            fc.weather.wind.clone(),
+            r,
+            w,
+            h,
+            (grid.north(), grid.west(), grid.di, grid.dj),
+            global,
+        );
         Ok(Plan {
+            sampler,
+            rh: fc.levels.clone(),
+            weather: fc.weather.clone(),
             levels,
             rows,
             cols,
@@ -220,7 +244,67 @@ impl Plan {
             .concat();
         let mut meta = self.meta.clone();
         fill_stats(&mut meta, &texels);
-        CloudMap { meta, texels }
+        let mut st = StructureStats::new();
+        self.sampler.tally(0, &texels, &mut st);
+        self.apply_structure(&mut meta, &st);
+        let structure = Some(self.sampler.map_structure(self.height));
+        CloudMap {
+            meta,
+            texels,
+            structure,
+        }
+    }
+
+    /// Put the structure summary of `st` into `meta`'s layers.
+    fn apply_structure(&self, meta: &mut CloudMapMeta, st: &StructureStats) {
+        for l in &mut meta.layers {
+            let c = l.channel;
+            let wind = self.sampler.winds[c].is_some();
+            l.structure = Some(st.layer(c, (l.base_m, l.top_m), l.altitude_source, wind));
+        }
+    }
+
+    /// The extra images of a map written to `png_path`: (path, streaming writer), and the
+    /// sidecar's list of them.
+    fn extra_writers<'a>(
+        &'a self,
+        png_path: &Path,
+    ) -> Result<(Vec<(PathBuf, ExtraWriter<'a>)>, Vec<ExtraImage>)> {
+        let mut writers: Vec<(PathBuf, ExtraWriter<'a>)> = Vec::new();
+        let mut listed = Vec::new();
+        for role in ExtraRole::ALL {
+            let path = extra_path(png_path, role);
+            listed.push(ExtraImage {
+                role,
+                image: file_name(&path)?,
+            });
+            let (w, h) = (self.width, self.height);
+            writers.push((
+                path,
+                Box::new(move |out, id| {
+                    let mut wr = extra_writer(out, role, w as u32, h as u32, id)?;
+                    let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
+                    let bands = self.bands();
+                    for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
+                        let parts: Vec<Vec<u8>> = chunk
+                            .par_iter()
+                            .map(|&(a, b)| {
+                                let mut v = Vec::new();
+                                for j in a..b {
+                                    self.sampler.append_row(role, j, &mut v);
+                                }
+                                v
+                            })
+                            .collect();
+                        for p in parts {
+                            sw.write_all(&p).map_err(|e| e.to_string())?;
+                        }
+                    }
+                    sw.finish().map_err(|e| e.to_string())
+                }),
+            ));
+        }
+        Ok((writers, listed))
     }
 
     fn bands(&self) -> Vec<(usize, usize)> {
@@ -237,7 +321,9 @@ impl Plan {
     pub fn write(&self, png_path: &Path, progress: &(dyn Fn(usize) + Sync)) -> Result<PathBuf> {
         let bands = self.bands();
         let stats = std::cell::RefCell::new(Stats::default());
-        write_pair(
+        let structure_stats = std::cell::RefCell::new(StructureStats::new());
+        let (extras, listed) = self.extra_writers(png_path)?;
+        write_set(
             png_path,
             &[self.source.as_path()],
             |w, id| {
@@ -245,12 +331,14 @@ impl Plan {
                 let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
                 let mut done = 0;
                 let mut st = Stats::default();
+                let mut sst = StructureStats::new();
                 // A few bands per core at a time bounds memory; order is kept by `collect`.
                 for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
                     let parts: Vec<Vec<[u16; 4]>> =
                         chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
                     for (p, &(a, b)) in parts.iter().zip(chunk) {
                         st.add(p);
+                        self.sampler.tally(a, p, &mut sst);
                         let mut bytes = Vec::with_capacity(p.len() * 8);
                         for t in p {
                             for c in t {
@@ -264,11 +352,15 @@ impl Plan {
                 }
                 sw.finish().map_err(|e| e.to_string())?;
                 *stats.borrow_mut() = st;
+                *structure_stats.borrow_mut() = sst;
                 Ok(())
             },
+            extras,
             |name, id| {
                 let mut meta = self.meta.clone();
                 stats.borrow().apply(&mut meta);
+                self.apply_structure(&mut meta, &structure_stats.borrow());
+                meta.extra_images = listed;
                 sidecar_json(&meta, name, id, png_path)
             },
         )
@@ -290,6 +382,9 @@ impl Plan {
         for l in &mut self.meta.layers {
             l.rh_cr = rh_cr[l.channel];
         }
+        let (ni, nj) = (self.sampler.grid.ni, self.sampler.grid.nj);
+        self.sampler.grid =
+            GridStructure::compute(&self.rh, &self.weather, &layer_specs(&self.meta), ni, nj);
         Ok(())
     }
 }
@@ -387,12 +482,14 @@ fn build_meta(
             },
             mean_coverage: 0.0,
             max_coverage: 0.0,
+            structure: None,
         });
     }
     Ok(CloudMapMeta {
         format: FORMAT.into(),
         image: String::new(),
         image_id: None,
+        extra_images: vec![],
         region: opts.region,
         width: opts.width,
         height: opts.height,
@@ -407,8 +504,22 @@ fn build_meta(
             grid_nj: grid.nj,
             grid_di_deg: grid.di,
             grid_dj_deg: grid.dj,
+            fields: fc.weather.found.iter().map(|s| s.to_string()).collect(),
         },
     })
+}
+
+/// The layers of `meta` as the structure needs them.
+fn layer_specs(meta: &CloudMapMeta) -> Vec<LayerSpec> {
+    meta.layers
+        .iter()
+        .map(|l| LayerSpec {
+            kind: l.kind,
+            rh_cr: l.rh_cr,
+            band_base_m: l.base_m,
+            band_top_m: l.top_m,
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -75,10 +75,22 @@ fn coverage_png_is_byte_identical_to_before() {
         return;
     }
     let cases = [
-        ("0,55,39,105", (260, 220), LevelSelect::AllBelow(DEFAULT_TOP_HPA)),
-        ("30,65,-50,0", (400, 280), LevelSelect::AllBelow(DEFAULT_TOP_HPA)),
+        (
+            "0,55,39,105",
+            (260, 220),
+            LevelSelect::AllBelow(DEFAULT_TOP_HPA),
+        ),
+        (
+            "30,65,-50,0",
+            (400, 280),
+            LevelSelect::AllBelow(DEFAULT_TOP_HPA),
+        ),
         ("0,55,39,105", (520, 440), LevelSelect::One(400.0)),
-        ("-90,90,0,360", (288, 146), LevelSelect::AllBelow(DEFAULT_TOP_HPA)),
+        (
+            "-90,90,0,360",
+            (288, 146),
+            LevelSelect::AllBelow(DEFAULT_TOP_HPA),
+        ),
     ];
     let got: Vec<u64> = cases
         .iter()
