@@ -701,6 +701,43 @@ mod tests {
     }
 
     #[test]
+    fn a_failed_sidecar_rename_puts_every_extra_image_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("m.png");
+        let extra = dir.path().join("m.base.png");
+        let write = |tag: &'static str| {
+            let extras: Vec<(PathBuf, ExtraWriter)> = vec![(
+                extra.clone(),
+                Box::new(move |w: &mut BufWriter<File>, id: &str| {
+                    w.write_all(format!("{tag} {id}").as_bytes())
+                        .map_err(|e| e.to_string())
+                }),
+            )];
+            write_set(
+                &png,
+                &[],
+                move |w, _| w.write_all(tag.as_bytes()).map_err(|e| e.to_string()),
+                extras,
+                move |_, id| Ok(format!("{tag} {id}").into_bytes()),
+            )
+        };
+        write("old").unwrap();
+        let before = fs::read(&extra).unwrap();
+        // The extra image and the sidecar carry the same id.
+        assert_eq!(before, fs::read(dir.path().join("m.json")).unwrap());
+        FAIL_SIDECAR_RENAME.with(|f| f.set(true));
+        write("new").unwrap_err();
+        assert_eq!(fs::read(&extra).unwrap(), before);
+        assert_eq!(fs::read(&png).unwrap(), b"old");
+        let mut left: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["m.base.png", "m.json", "m.png"]);
+    }
+
+    #[test]
     fn stale_temps_are_swept_and_fresh_ones_kept() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();

@@ -266,10 +266,7 @@ impl Plan {
 
     /// The extra images of a map written to `png_path`: (path, streaming writer), and the
     /// sidecar's list of them.
-    fn extra_writers<'a>(
-        &'a self,
-        png_path: &Path,
-    ) -> Result<(Vec<(PathBuf, ExtraWriter<'a>)>, Vec<ExtraImage>)> {
+    fn extra_writers<'a>(&'a self, png_path: &Path) -> Result<(ExtraSet<'a>, Vec<ExtraImage>)> {
         let mut writers: Vec<(PathBuf, ExtraWriter<'a>)> = Vec::new();
         let mut listed = Vec::new();
         for role in ExtraRole::ALL {
@@ -508,6 +505,9 @@ fn build_meta(
         },
     })
 }
+
+/// Extra images to write: (path, streaming writer).
+type ExtraSet<'a> = Vec<(PathBuf, ExtraWriter<'a>)>;
 
 /// The layers of `meta` as the structure needs them.
 fn layer_specs(meta: &CloudMapMeta) -> Vec<LayerSpec> {

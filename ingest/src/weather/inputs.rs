@@ -111,18 +111,20 @@ impl WeatherInputs {
         }
 
         // Isobaric stacks up to `top_hpa`, one level at a time.
-        let iso = |param: (u8, u8, u8)| -> Vec<(f64, &MessageInfo)> {
+        let iso_from = |param: (u8, u8, u8), top: f64| -> Vec<(f64, &MessageInfo)> {
             let mut v: Vec<(f64, &MessageInfo)> = msgs
                 .iter()
                 .filter(|m| m.parameter() == param)
                 .filter_map(|m| Some((m.pressure_hpa()?, m)))
-                .filter(|(p, _)| *p >= top_hpa - 1e-6)
+                .filter(|(p, _)| *p >= top - 1e-6)
                 .collect();
             v.sort_by(|a, b| b.0.total_cmp(&a.0));
             v.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-6);
             v
         };
-        w.gh = iso((0, 3, 5))
+        let iso = |param: (u8, u8, u8)| iso_from(param, top_hpa);
+        // gh a little above the top too: GFS puts tropical high-cloud tops near 80 hPa.
+        w.gh = iso_from((0, 3, 5), top_hpa.min(50.0))
             .into_iter()
             .filter_map(|(p, m)| Some((p, decode(m)?)))
             .filter(|(_, g)| g.iter().all(|v| v.is_finite()))
@@ -136,7 +138,7 @@ impl WeatherInputs {
         let vs = iso((0, 2, 3));
         let levels: Vec<f64> = us.iter().map(|x| x.0).collect();
         let weights = layer_weights(&levels);
-        let mut acc: [Option<(Vec<f64>, Vec<f64>, f64)>; 3] = Default::default();
+        let mut acc: [Option<WindSum>; 3] = Default::default();
         for ((p, um), (kind, dp)) in us.iter().zip(&weights) {
             let Some(vm) = vs.iter().find(|(q, _)| (q - p).abs() < 1e-6).map(|x| x.1) else {
                 continue;
@@ -192,6 +194,9 @@ impl WeatherInputs {
         w
     }
 }
+
+/// Σ u·Δp, Σ v·Δp per point, and Σ Δp.
+type WindSum = (Vec<f64>, Vec<f64>, f64);
 
 /// For isobaric levels (descending hPa): each level's layer and the pressure thickness (hPa) it
 /// stands for — half-way to its neighbours, cut at the layer's bounds, the end levels' outer
