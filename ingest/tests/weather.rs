@@ -442,3 +442,53 @@ fn bad_extra_images_are_refused_in_one_line() {
     std::fs::write(&json, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     one_line(&["m.json", "no wind-v image"]);
 }
+
+/// The map built in memory (the renderer's live path) holds what the written set holds.
+#[test]
+fn built_and_written_structure_agree() {
+    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+        return;
+    };
+    let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();
+    let plan = Plan::new(
+        &fc,
+        &IngestOptions {
+            region: Region::parse("-10,40,100,180").unwrap(),
+            width: 160,
+            height: 100,
+            rh_cr: LayerKind::DEFAULT_RH_CR,
+            interp: Interp::Spline,
+        },
+    )
+    .unwrap();
+    let built = plan.build();
+    let dir = tempfile::tempdir().unwrap();
+    let loaded = CloudMap::load(&plan.write(&dir.path().join("w.png"), &|_| {}).unwrap()).unwrap();
+    assert_eq!(built.texels, loaded.texels);
+    assert_eq!(built.structure, loaded.structure);
+    // The sidecar's shares go through JSON (serde_json may round the last bit).
+    for (a, b) in built.meta.layers.iter().zip(&loaded.meta.layers) {
+        let (a, b) = (a.structure.as_ref().unwrap(), b.structure.as_ref().unwrap());
+        assert_eq!(a.cloudy_pixels, b.cloudy_pixels);
+        assert_eq!((a.base_min_m, a.top_max_m), (b.base_min_m, b.top_max_m));
+        let close = |x: Vec<f64>, y: Vec<f64>| x.iter().zip(&y).all(|(x, y)| (x - y).abs() < 1e-12);
+        assert!(a.sources.keys().eq(b.sources.keys()) && a.types.keys().eq(b.types.keys()));
+        assert!(close(
+            a.sources.values().copied().collect(),
+            b.sources.values().copied().collect()
+        ));
+        assert!(close(
+            a.types.values().copied().collect(),
+            b.types.values().copied().collect()
+        ));
+    }
+    // The western Pacific holds deep convection: some high-layer cumulonimbus.
+    let high = loaded.meta.layer(LayerKind::High).unwrap();
+    let types = &high.structure.as_ref().unwrap().types;
+    assert!(
+        types
+            .get(&CloudType::Cumulonimbus)
+            .is_some_and(|&f| f > 0.01),
+        "{types:?}"
+    );
+}

@@ -273,24 +273,50 @@ impl PixelSampler {
         }
     }
 
-    /// The whole structure in memory (rows `0..height`).
+    /// The whole structure in memory (rows `0..height`, in parallel).
     pub fn map_structure(&self, height: usize) -> MapStructure {
-        let n = self.width * height;
+        use rayon::prelude::*;
+        type Row = (
+            Vec<[u16; 4]>,
+            Vec<[u16; 4]>,
+            Vec<[u8; 4]>,
+            Vec<[u16; 3]>,
+            Vec<[u16; 3]>,
+        );
+        let rows: Vec<Row> = (0..height)
+            .into_par_iter()
+            .map(|j| {
+                let w = self.width;
+                let mut r: Row = (
+                    Vec::with_capacity(w),
+                    Vec::with_capacity(w),
+                    Vec::with_capacity(w),
+                    Vec::with_capacity(w),
+                    Vec::with_capacity(w),
+                );
+                for i in 0..w {
+                    r.0.push(self.heights(i, j, false));
+                    r.1.push(self.heights(i, j, true));
+                    r.2.push(self.types(i, j));
+                    r.3.push(self.wind(i, j, false));
+                    r.4.push(self.wind(i, j, true));
+                }
+                r
+            })
+            .collect();
         let mut s = MapStructure {
-            base: Vec::with_capacity(n),
-            top: Vec::with_capacity(n),
-            types: Vec::with_capacity(n),
-            wind_u: Vec::with_capacity(n),
-            wind_v: Vec::with_capacity(n),
+            base: Vec::new(),
+            top: Vec::new(),
+            types: Vec::new(),
+            wind_u: Vec::new(),
+            wind_v: Vec::new(),
         };
-        for j in 0..height {
-            for i in 0..self.width {
-                s.base.push(self.heights(i, j, false));
-                s.top.push(self.heights(i, j, true));
-                s.types.push(self.types(i, j));
-                s.wind_u.push(self.wind(i, j, false));
-                s.wind_v.push(self.wind(i, j, true));
-            }
+        for r in rows {
+            s.base.extend(r.0);
+            s.top.extend(r.1);
+            s.types.extend(r.2);
+            s.wind_u.extend(r.3);
+            s.wind_v.extend(r.4);
         }
         s
     }
