@@ -94,6 +94,7 @@ impl CloudMap {
                 image: "synthetic.png".into(),
                 image_id: None,
                 extra_images: vec![],
+                structure_grid: None,
                 region,
                 width,
                 height,
@@ -170,22 +171,16 @@ impl CloudMap {
         let mut meta = self.meta.clone();
         let mut extras: Vec<(PathBuf, ExtraWriter)> = Vec::new();
         meta.extra_images.clear();
+        meta.structure_grid = None;
         if let Some(s) = &self.structure {
-            let n = self.texels.len();
-            if [
-                s.base.len(),
-                s.top.len(),
-                s.types.len(),
-                s.wind_u.len(),
-                s.wind_v.len(),
-            ]
-            .iter()
-            .any(|&l| l != n)
-            {
+            let (sw, sh) = (s.grid.width, s.grid.height);
+            if !s.is_whole() {
                 return Err(IngestError::BadMap(format!(
-                    "structure images do not have the map's {n} pixels"
+                    "structure images are not {sw}x{sh} pixels each"
                 )));
             }
+            // Checked with the rest of the sidecar before anything is written.
+            meta.structure_grid = Some(s.grid);
             for role in ExtraRole::ALL {
                 let path = extra_path(png_path, role);
                 meta.extra_images.push(ExtraImage {
@@ -202,7 +197,7 @@ impl CloudMap {
                 extras.push((
                     path,
                     Box::new(move |w, id| {
-                        let mut wr = extra_writer(w, role, width, height, id)?;
+                        let mut wr = extra_writer(w, role, sw, sh, id)?;
                         wr.write_image_data(&bytes).map_err(|e| e.to_string())?;
                         wr.finish().map_err(|e| e.to_string())
                     }),
@@ -273,7 +268,8 @@ pub(crate) fn extra_writer<W: Write>(
     enc.write_header().map_err(|e| e.to_string())
 }
 
-/// Read and check the five extra images `meta` lists.
+/// Read and check the five extra images `meta` lists, each of the size the sidecar records
+/// ([`CloudMapMeta::structure_pixels`]).
 fn read_structure(
     sidecar: &Path,
     meta: &CloudMapMeta,
@@ -294,7 +290,9 @@ fn read_structure(
         let buf = read_image(&path, meta, ct, bd, role.suffix())?;
         raw.push((path, buf));
     }
-    let n = meta.width as usize * meta.height as usize;
+    let grid = meta.structure_pixels();
+    let (w, h) = (grid.width as usize, grid.height as usize);
+    let n = w * h;
     let u16s = |b: &[u8]| -> Vec<u16> {
         b.chunks_exact(2)
             .map(|c| u16::from_be_bytes([c[0], c[1]]))
@@ -315,6 +313,7 @@ fn read_structure(
             .collect()
     };
     let s = MapStructure {
+        grid,
         base: quad(&raw[0].1),
         top: quad(&raw[1].1),
         types: raw[2]
@@ -327,7 +326,6 @@ fn read_structure(
         wind_v: triple(&raw[4].1),
     };
     if let Some((k, what)) = s.first_bad_type() {
-        let w = meta.width as usize;
         return Err(PngFault::Other(IngestError::BadCloudMap {
             path: raw[2].0.clone(),
             msg: format!("pixel ({}, {}): {what}", k % w, k / w),
@@ -434,7 +432,7 @@ fn read_png16(path: &Path, meta: &CloudMapMeta) -> std::result::Result<Vec<[u16;
             msg,
         })
     };
-    let mut reader = open_checked(path, meta)?;
+    let mut reader = open_checked(path, meta, (width, height))?;
     let info = reader.info();
     let (ct, bd) = (info.color_type, info.bit_depth);
     if ct != png::ColorType::Rgba || !matches!(bd, png::BitDepth::Sixteen | png::BitDepth::Eight) {
@@ -468,13 +466,13 @@ fn read_png16(path: &Path, meta: &CloudMapMeta) -> std::result::Result<Vec<[u16;
     Ok(texels)
 }
 
-/// Open a PNG of `meta`'s set and check, before decoding any pixel, that it has the sidecar's
-/// size and carries its image id (formats 2 and 3).
+/// Open a PNG of `meta`'s set and check, before decoding any pixel, that it has the size the
+/// sidecar gives it (`(width, height)`) and carries its image id (formats 2 and 3).
 fn open_checked(
     path: &Path,
     meta: &CloudMapMeta,
+    (width, height): (u32, u32),
 ) -> std::result::Result<png::Reader<std::io::BufReader<fs::File>>, PngFault> {
-    let (width, height) = (meta.width, meta.height);
     let bad = |msg: String| {
         PngFault::Other(IngestError::BadCloudMap {
             path: path.to_path_buf(),
@@ -521,7 +519,8 @@ fn open_checked(
     Ok(reader)
 }
 
-/// Read an extra image of `meta`'s set, which must be exactly `ct` `bd`; its raw samples.
+/// Read an extra image of `meta`'s set, which must be exactly `ct` `bd` and of the structure
+/// images' recorded size; its raw samples.
 fn read_image(
     path: &Path,
     meta: &CloudMapMeta,
@@ -535,7 +534,8 @@ fn read_image(
             msg,
         })
     };
-    let mut reader = open_checked(path, meta)?;
+    let g = meta.structure_pixels();
+    let mut reader = open_checked(path, meta, (g.width, g.height))?;
     let info = reader.info();
     if (info.color_type, info.bit_depth) != (ct, bd) {
         return Err(bad(format!(

@@ -149,6 +149,92 @@ pub struct ExtraImage {
     pub image: String,
 }
 
+/// Where the structure images' pixels lie (version 3; all five share it): `width`×`height`
+/// pixel centres on a lat/lon lattice, row 0 north, column 0 west. The structure comes from
+/// the forecast grid, so its images are stored at a resolution tied to that grid, never
+/// larger than the map ([`crate::structure::structure_grid`]); readers sample them by
+/// lat/lon: x = (lon − west) / dlon, y = (north − lat) / dlat, clamped to the outer centres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StructureGrid {
+    pub width: u32,
+    pub height: u32,
+    /// Latitude of row 0's pixel centres, degrees; row j is at north − j × dlat.
+    pub north: f64,
+    /// Longitude of column 0's pixel centres, degrees (the region's convention); column i is
+    /// at west + i × dlon.
+    pub west: f64,
+    pub dlat: f64,
+    pub dlon: f64,
+}
+
+impl StructureGrid {
+    /// The map's own pixels: centres half a pixel inside the region's edges.
+    pub fn of_map(region: &Region, width: u32, height: u32) -> StructureGrid {
+        let dlat = (region.north - region.south) / height.max(1) as f64;
+        let dlon = region.lon_span() / width.max(1) as f64;
+        StructureGrid {
+            width,
+            height,
+            north: region.north - 0.5 * dlat,
+            west: region.west + 0.5 * dlon,
+            dlat,
+            dlon,
+        }
+    }
+
+    /// Fractional column (centres at whole numbers) of a longitude, clamped to the outer
+    /// centres; `lon` is taken east of `region`'s west edge, as the map's pixels are.
+    pub fn x(&self, region: &Region, lon: f64) -> f64 {
+        let lon = region.west + (lon - region.west).rem_euclid(360.0);
+        ((lon - self.west) / self.dlon).clamp(0.0, (self.width.max(1) - 1) as f64)
+    }
+
+    /// Fractional row of a latitude, clamped to the outer centres.
+    pub fn y(&self, lat: f64) -> f64 {
+        ((self.north - lat) / self.dlat).clamp(0.0, (self.height.max(1) - 1) as f64)
+    }
+
+    /// Check it against the map: each side 1..= the map's, finite positive spacings, and pixels
+    /// whose extents cover the region (so a reader never samples outside them).
+    fn validate(&self, region: &Region, map: (u32, u32)) -> Result<(), String> {
+        for (name, v, side) in [("width", self.width, map.0), ("height", self.height, map.1)] {
+            if v == 0 || v > side {
+                return Err(format!(
+                    "structure_grid.{name}: {v} px is outside 1..={side} (the map's {name})"
+                ));
+            }
+        }
+        for (name, v) in [("north", self.north), ("west", self.west)] {
+            if !v.is_finite() {
+                return Err(format!("structure_grid.{name}: {v} is not a number"));
+            }
+        }
+        for (name, v) in [("dlat", self.dlat), ("dlon", self.dlon)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "structure_grid.{name}: {v} is not a positive spacing"
+                ));
+            }
+        }
+        let slack = 1e-6;
+        let (w, h) = (self.width as f64, self.height as f64);
+        let east = self.west + (w - 0.5) * self.dlon;
+        let south = self.north - (h - 0.5) * self.dlat;
+        let west_gap = self.west - 0.5 * self.dlon - region.west;
+        if self.north + 0.5 * self.dlat < region.north - slack
+            || south > region.south + slack
+            || west_gap > slack
+            || east < region.west + region.lon_span() - slack
+        {
+            return Err(format!(
+                "structure_grid: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
+                self.width, self.height, self.north, self.west, self.dlat, self.dlon
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A layer's structure over the map (version 3): what the renderer needs before it reads the
 /// images, and what a reader checks at a glance.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -225,6 +311,9 @@ pub struct CloudMapMeta {
     /// loader gives each layer its band and default type.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extra_images: Vec<ExtraImage>,
+    /// Where the structure images' pixels lie; absent: the map's own pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub structure_grid: Option<StructureGrid>,
     pub region: Region,
     pub width: u32,
     pub height: u32,
@@ -370,6 +459,9 @@ impl CloudMapMeta {
             }
         }
         if self.extra_images.is_empty() {
+            if self.structure_grid.is_some() {
+                return Err("structure_grid: given without extra_images".into());
+            }
             return Ok(());
         }
         if self.format != FORMAT {
@@ -402,12 +494,22 @@ impl CloudMapMeta {
                 r.suffix()
             ));
         }
+        if let Some(g) = &self.structure_grid {
+            g.validate(&self.region, (self.width, self.height))?;
+        }
         Ok(())
     }
 
     /// The extra image of `role`, if the map has structure images.
     pub fn extra(&self, role: ExtraRole) -> Option<&ExtraImage> {
         self.extra_images.iter().find(|x| x.role == role)
+    }
+
+    /// Where the structure images' pixels lie: what the sidecar records, the map's own
+    /// pixels where it records nothing (the first version-3 sidecars wrote them so).
+    pub fn structure_pixels(&self) -> StructureGrid {
+        self.structure_grid
+            .unwrap_or_else(|| StructureGrid::of_map(&self.region, self.width, self.height))
     }
 }
 

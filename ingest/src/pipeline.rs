@@ -17,12 +17,14 @@ use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, RhLevel};
 use crate::meta::{
-    AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta, FORMAT,
+    AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
+    StructureGrid, FORMAT,
 };
 use crate::output::{write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
-use crate::weather::pixels::{PixelSampler, StructureStats};
+use crate::structure::structure_grid;
+use crate::weather::pixels::{PixelSampler, Placement, StructureStats};
 use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
 
 /// What the user asked of one ingest.
@@ -79,6 +81,7 @@ pub struct Plan {
     /// Per-pixel structure, types and winds (issue 13), and what recomputes it when rh_cr
     /// changes (the RH-column source depends on it).
     sampler: PixelSampler,
+    placement: Placement,
     rh: Vec<RhLevel>,
     weather: WeatherInputs,
 }
@@ -168,17 +171,26 @@ impl Plan {
         meta.validate_content().map_err(IngestError::BadMap)?;
         let structure =
             GridStructure::compute(&fc.levels, &fc.weather, &layer_specs(&meta), ni, nj);
-        let sampler = PixelSampler::new(
-            structure,
-            fc.weather.wind.clone(),
+        // The structure images on the grid's lattice, not at the map's size (docs/ingest.md).
+        let lattice = structure_grid(
+            (opts.width, opts.height),
             r,
-            w,
-            h,
-            (grid.north(), grid.west(), grid.di, grid.dj),
-            global,
+            (grid.north(), grid.west()),
+            (grid.di, grid.dj),
         );
+        let placement = Placement {
+            region: *r,
+            map_size: (w, h),
+            north: grid.north(),
+            west: grid.west(),
+            di: grid.di,
+            dj: grid.dj,
+            wrap: global,
+        };
+        let sampler = PixelSampler::new(structure, fc.weather.wind.clone(), placement, lattice);
         Ok(Plan {
             sampler,
+            placement,
             rh: fc.levels.clone(),
             weather: fc.weather.clone(),
             levels,
@@ -234,20 +246,28 @@ impl Plan {
         out
     }
 
+    /// Coverage texels of rows `j0..j1` and the structure tally of their cloudy pixels.
+    fn band(&self, j0: usize, j1: usize) -> (Vec<[u16; 4]>, StructureStats) {
+        let texels = self.rows(j0, j1);
+        let mut st = StructureStats::new();
+        self.sampler.tally(j0, &texels, &mut st);
+        (texels, st)
+    }
+
     /// Build the whole map in memory (for the renderer, tests and live re-derivation).
     pub fn build(&self) -> CloudMap {
-        let bands = self.bands();
-        let texels: Vec<[u16; 4]> = bands
-            .par_iter()
-            .map(|&(a, b)| self.rows(a, b))
-            .collect::<Vec<_>>()
-            .concat();
+        let bands = self.bands(self.height);
+        let parts: Vec<_> = bands.par_iter().map(|&(a, b)| self.band(a, b)).collect();
+        let mut st = StructureStats::new();
+        let mut texels = Vec::with_capacity(self.width * self.height);
+        for (t, s) in parts {
+            texels.extend(t);
+            st.merge(&s);
+        }
         let mut meta = self.meta.clone();
         fill_stats(&mut meta, &texels);
-        let mut st = StructureStats::new();
-        self.sampler.tally(0, &texels, &mut st);
         self.apply_structure(&mut meta, &st);
-        let structure = Some(self.sampler.map_structure(self.height));
+        let structure = Some(self.sampler.map_structure());
         CloudMap {
             meta,
             texels,
@@ -269,19 +289,20 @@ impl Plan {
     fn extra_writers<'a>(&'a self, png_path: &Path) -> Result<(ExtraSet<'a>, Vec<ExtraImage>)> {
         let mut writers: Vec<(PathBuf, ExtraWriter<'a>)> = Vec::new();
         let mut listed = Vec::new();
+        let g = self.sampler.lattice();
+        let (w, h) = (g.width as usize, g.height as usize);
         for role in ExtraRole::ALL {
             let path = extra_path(png_path, role);
             listed.push(ExtraImage {
                 role,
                 image: file_name(&path)?,
             });
-            let (w, h) = (self.width, self.height);
             writers.push((
                 path,
                 Box::new(move |out, id| {
                     let mut wr = extra_writer(out, role, w as u32, h as u32, id)?;
                     let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
-                    let bands = self.bands();
+                    let bands = self.bands(h);
                     for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
                         let parts: Vec<Vec<u8>> = chunk
                             .par_iter()
@@ -304,10 +325,11 @@ impl Plan {
         Ok((writers, listed))
     }
 
-    fn bands(&self) -> Vec<(usize, usize)> {
+    /// Rows `0..height` in bands of 32.
+    fn bands(&self, height: usize) -> Vec<(usize, usize)> {
         let band = 32;
-        (0..self.height.div_ceil(band))
-            .map(|b| (b * band, ((b + 1) * band).min(self.height)))
+        (0..height.div_ceil(band))
+            .map(|b| (b * band, ((b + 1) * band).min(height)))
             .collect()
     }
 
@@ -316,7 +338,7 @@ impl Plan {
     /// pair (if any) is left as it was. Neither file may be the forecast file read.
     /// `progress` is called with the number of rows done.
     pub fn write(&self, png_path: &Path, progress: &(dyn Fn(usize) + Sync)) -> Result<PathBuf> {
-        let bands = self.bands();
+        let bands = self.bands(self.height);
         let stats = std::cell::RefCell::new(Stats::default());
         let structure_stats = std::cell::RefCell::new(StructureStats::new());
         let (extras, listed) = self.extra_writers(png_path)?;
@@ -331,11 +353,10 @@ impl Plan {
                 let mut sst = StructureStats::new();
                 // A few bands per core at a time bounds memory; order is kept by `collect`.
                 for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
-                    let parts: Vec<Vec<[u16; 4]>> =
-                        chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
-                    for (p, &(a, b)) in parts.iter().zip(chunk) {
+                    let parts: Vec<_> = chunk.par_iter().map(|&(a, b)| self.band(a, b)).collect();
+                    for ((p, s), &(a, b)) in parts.iter().zip(chunk) {
                         st.add(p);
-                        self.sampler.tally(a, p, &mut sst);
+                        sst.merge(s);
                         let mut bytes = Vec::with_capacity(p.len() * 8);
                         for t in p {
                             for c in t {
@@ -358,6 +379,7 @@ impl Plan {
                 stats.borrow().apply(&mut meta);
                 self.apply_structure(&mut meta, &structure_stats.borrow());
                 meta.extra_images = listed;
+                meta.structure_grid = Some(self.sampler.lattice());
                 sidecar_json(&meta, name, id, png_path)
             },
         )
@@ -365,6 +387,18 @@ impl Plan {
 
     pub fn height(&self) -> usize {
         self.height
+    }
+
+    /// Where the structure images this plan writes lie: [`structure_grid`] unless changed.
+    pub fn structure_grid(&self) -> StructureGrid {
+        self.sampler.lattice()
+    }
+
+    /// Sample the structure images at the map's own pixels instead (every pixel, as a
+    /// full-resolution reference for the reduced images).
+    pub fn use_map_pixels_for_structure(&mut self) {
+        let g = StructureGrid::of_map(&self.meta.region, self.width as u32, self.height as u32);
+        self.sampler.set_lattice(self.placement, g);
     }
 
     /// Change the critical humidities (low, middle, high) without re-reading the file: the RH
@@ -487,6 +521,7 @@ fn build_meta(
         image: String::new(),
         image_id: None,
         extra_images: vec![],
+        structure_grid: None,
         region: opts.region,
         width: opts.width,
         height: opts.height,

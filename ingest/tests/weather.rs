@@ -412,7 +412,8 @@ fn bad_extra_images_are_refused_in_one_line() {
     // Wrong size (same image id).
     fresh(dir.path());
     tamper(&dir.path().join("m.base.png"), Some((2, 2)), |_| {});
-    one_line(&["m.base.png", "PNG is 2x2 but its sidecar says 40x28"]);
+    // The structure images of a 40x28 map of 50° x 35° lie on the 2.5° grid points: 21x15.
+    one_line(&["m.base.png", "PNG is 2x2 but its sidecar says 21x15"]);
     // A type code outside the table.
     fresh(dir.path());
     tamper(&dir.path().join("m.type.png"), None, |b| {
@@ -420,7 +421,7 @@ fn bad_extra_images_are_refused_in_one_line() {
     });
     one_line(&[
         "m.type.png",
-        "pixel (5, 1)",
+        "pixel (3, 2)",
         "middle layer type code 200 is outside the table (0..=10)",
     ]);
     // Another map's image (its id differs).
@@ -441,6 +442,63 @@ fn bad_extra_images_are_refused_in_one_line() {
     v["extra_images"].as_array_mut().unwrap().remove(4);
     std::fs::write(&json, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     one_line(&["m.json", "no wind-v image"]);
+    // A structure grid larger than the map, one that leaves part of the region uncovered, and
+    // one whose size is not the images'.
+    let edit = |f: &dyn Fn(&mut serde_json::Value)| {
+        fresh(dir.path());
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        f(&mut v["structure_grid"]);
+        std::fs::write(&json, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    };
+    edit(&|g| g["width"] = 41.into());
+    one_line(&["m.json", "structure_grid.width: 41 px is outside 1..=40"]);
+    edit(&|g| g["west"] = (-45.0).into());
+    one_line(&["m.json", "structure_grid", "do not cover the region"]);
+    edit(&|g| {
+        g["width"] = 22.into();
+        g["height"] = 16.into();
+    });
+    one_line(&["m.base.png", "PNG is 21x15 but its sidecar says 22x16"]);
+}
+
+/// A version-3 sidecar without `structure_grid` (as the first version-3 ingest wrote them,
+/// every structure image at the map's size) still loads, its images taken as the map's pixels.
+#[test]
+fn a_version_3_sidecar_without_a_structure_grid_loads_at_the_map_size() {
+    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+        return;
+    };
+    let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();
+    let region = Region::parse("30,65,-50,0").unwrap();
+    let mut plan = Plan::new(
+        &fc,
+        &IngestOptions {
+            region,
+            width: 200,
+            height: 140,
+            rh_cr: LayerKind::DEFAULT_RH_CR,
+            interp: Interp::Spline,
+        },
+    )
+    .unwrap();
+    plan.use_map_pixels_for_structure();
+    let dir = tempfile::tempdir().unwrap();
+    let json = plan.write(&dir.path().join("m.png"), &|_| {}).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("structure_grid").unwrap();
+    std::fs::write(&json, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let m = CloudMap::load(&json).unwrap();
+    assert_eq!(m.meta.structure_grid, None);
+    let s = m.structure.as_ref().unwrap();
+    assert_eq!(
+        s.grid,
+        stratus_ingest::meta::StructureGrid::of_map(&region, 200, 140)
+    );
+    assert_eq!(s.base.len(), 200 * 140);
+    let p = m.probe(50.0, -25.0).unwrap();
+    assert_eq!(p.layers[1].source, AltitudeSource::GfsLayer);
 }
 
 /// The map built in memory (the renderer's live path) holds what the written set holds.
@@ -491,4 +549,141 @@ fn built_and_written_structure_agree() {
             .is_some_and(|&f| f > 0.01),
         "{types:?}"
     );
+}
+
+/// Probe differences between two maps at `points`: per point and layer where both have a
+/// cloud, |Δbase| and |Δtop| (m), sorted; and how many layers differ in type or source.
+fn probe_differences(a: &CloudMap, b: &CloudMap, points: &[(f64, f64)]) -> (Vec<f64>, usize) {
+    let (mut dz, mut mismatched) = (Vec::new(), 0);
+    for &(lat, lon) in points {
+        let (pa, pb) = (a.probe(lat, lon).unwrap(), b.probe(lat, lon).unwrap());
+        for (la, lb) in pa.layers.iter().zip(&pb.layers) {
+            if la.coverage == 0.0 || lb.coverage == 0.0 {
+                continue;
+            }
+            for (x, y) in [(la.base_m, lb.base_m), (la.top_m, lb.top_m)] {
+                dz.push((x.unwrap() - y.unwrap()).abs());
+            }
+            if (la.cloud_type, la.source) != (lb.cloud_type, lb.source) {
+                mismatched += 1;
+            }
+        }
+    }
+    dz.sort_by(f64::total_cmp);
+    (dz, mismatched)
+}
+
+/// A large map stores its structure on the forecast grid's lattice (7 pixels a 2.5° cell),
+/// not at its own size; the sidecar and the PNG headers say so; and the probe through the
+/// reduced images gives, at grid points (the verification points of docs/ingest.md among
+/// them), exactly what a map whose pixels are the grid points gives, and between grid lines
+/// what a full-resolution sampling (every map pixel, as before the reduction) gives, within
+/// the 0.5 m quantisation; type and source everywhere alike.
+#[test]
+fn structure_images_are_reduced_and_probe_like_full_resolution() {
+    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+        return;
+    };
+    let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let new_plan = |region: Region, (width, height): (u32, u32)| {
+        Plan::new(
+            &fc,
+            &IngestOptions {
+                region,
+                width,
+                height,
+                rh_cr: LayerKind::DEFAULT_RH_CR,
+                interp: Interp::Spline,
+            },
+        )
+        .unwrap()
+    };
+    // North Atlantic (50°N 25°W, 45°N 5°W) and the western Pacific (15°N 137.5°E, 5°N 155°E).
+    for (region, size, reduced_size) in [
+        ("30,65,-50,0", (1000, 700), (141, 99)),
+        ("-10,40,100,180", (1200, 750), (225, 141)),
+    ] {
+        let r = Region::parse(region).unwrap();
+        let mut plan = new_plan(r, size);
+        let g = plan.structure_grid();
+        assert_eq!((g.width, g.height), reduced_size);
+        let png_path = dir.path().join("r.png");
+        let reduced = CloudMap::load(&plan.write(&png_path, &|_| {}).unwrap()).unwrap();
+        assert_eq!(reduced.meta.structure_grid, Some(g));
+        for x in &reduced.meta.extra_images {
+            let f = std::fs::File::open(dir.path().join(&x.image)).unwrap();
+            let r = png::Decoder::new(std::io::BufReader::new(f))
+                .read_info()
+                .unwrap();
+            assert_eq!(
+                (r.info().width, r.info().height),
+                reduced_size,
+                "{}",
+                x.image
+            );
+        }
+        assert_eq!(reduced.structure.as_ref().unwrap().grid, g);
+
+        plan.use_map_pixels_for_structure();
+        let full = plan.build();
+        assert_eq!(full.texels, reduced.texels);
+        let fg = full.structure.as_ref().unwrap().grid;
+        assert_eq!((fg.width, fg.height), size);
+        // Pixel centres on the grid points: bilinear weights 0 and 1 there, so exact.
+        let on_grid = Region {
+            south: r.south - 1.25,
+            north: r.north + 1.25,
+            west: r.west - 1.25,
+            east: r.east + 1.25,
+        };
+        let cells = (
+            on_grid.lon_span() / 2.5,
+            (on_grid.north - on_grid.south) / 2.5,
+        );
+        let exact = plan_map(new_plan(on_grid, (cells.0 as u32, cells.1 as u32)), &dir);
+
+        let (mut grid_points, mut between) = (Vec::new(), Vec::new());
+        let mut lat = r.south + 2.5;
+        while lat < r.north - 1.0 {
+            let mut dlon = 2.5;
+            while dlon < r.lon_span() - 1.0 {
+                let lon = r.west + dlon;
+                grid_points.push((lat, lon));
+                between.extend([(lat + 0.625, lon + 0.625), (lat - 0.8, lon + 0.3)]);
+                dlon += 2.5;
+            }
+            lat += 2.5;
+        }
+        for (what, other, points) in [
+            ("grid points vs the grid", &exact, &grid_points),
+            ("between grid lines vs full resolution", &full, &between),
+        ] {
+            let (dz, mismatched) = probe_differences(&reduced, other, points);
+            let max = dz[dz.len() - 1];
+            eprintln!(
+                "{region}, {what}: {} points, {} base/top values, |Δz| median {:.2} max {:.2} m, type/source mismatches {mismatched}",
+                points.len(),
+                dz.len(),
+                dz[dz.len() / 2],
+                max
+            );
+            assert_eq!(mismatched, 0, "{region}, {what}");
+            assert!(max <= 0.5, "{region}, {what}: {max}");
+        }
+        // What the reduction fixes: the full-resolution map, bilinear between pixels that
+        // straddle grid lines, rounds the grid points' values by tens of metres.
+        let (dz, _) = probe_differences(&full, &exact, &grid_points);
+        eprintln!(
+            "{region}, full resolution at grid points vs the grid: |Δz| median {:.2} max {:.2} m",
+            dz[dz.len() / 2],
+            dz[dz.len() - 1]
+        );
+    }
+}
+
+/// Write `plan`'s map into `dir` and load it.
+fn plan_map(plan: Plan, dir: &tempfile::TempDir) -> CloudMap {
+    let json = plan.write(&dir.path().join("g.png"), &|_| {}).unwrap();
+    CloudMap::load(&json).unwrap()
 }

@@ -1,9 +1,11 @@
-//! Sampling the grid structure onto the map's pixels: base, top and wind bilinear between grid
-//! points (only over the points that have a value, for the convective cloud), type and source
-//! from the nearest grid point. Each image is produced a row at a time, so a large map is
-//! streamed like its coverage.
+//! Sampling the grid structure onto the structure images' pixels ([`crate::structure`]: a
+//! few pixels per grid cell over the map's region, not the map's size): base, top and wind
+//! bilinear between grid points (only over the points that have a value, for the convective
+//! cloud), type and source from the nearest grid point. Each image is produced a row at a
+//! time. The sidecar's per-layer summary is tallied over the map's cloudy pixels as a reader
+//! sees them through the structure images ([`PixelSampler::tally`]).
 
-use crate::meta::{AltitudeSource, ExtraRole, LayerStructure};
+use crate::meta::{AltitudeSource, ExtraRole, LayerStructure, StructureGrid};
 use crate::region::Region;
 use crate::structure::{altitude_to_sample, pack_sources, wind_to_sample, MapStructure};
 
@@ -39,13 +41,37 @@ fn tap(x: f64, n: usize, wrap: bool) -> Tap2 {
     Tap2 { a, b, t, near }
 }
 
-/// The grid structure and winds, with each pixel's taps.
+/// A coverage pixel's place among the structure pixels of one axis: the bilinear pair a
+/// reader blends and the nearest one.
+#[derive(Debug, Clone, Copy)]
+struct MapTap {
+    a: usize,
+    b: usize,
+    near: usize,
+}
+
+/// A coverage pixel's taps among `n` structure pixels at fractional coordinate `x` (clamped).
+fn map_tap(x: f64, n: usize) -> MapTap {
+    let a = x.floor() as usize;
+    MapTap {
+        a,
+        b: (a + 1).min(n - 1),
+        near: x.round() as usize,
+    }
+}
+
+/// The grid structure and winds, with each structure pixel's grid taps and each coverage
+/// pixel's structure taps.
 pub struct PixelSampler {
     pub grid: GridStructure,
     pub winds: [Option<(Grid32, Grid32)>; 3],
     rows: Vec<Tap2>,
     cols: Vec<Tap2>,
+    /// Where the structure images' pixels lie.
+    lattice: StructureGrid,
     width: usize,
+    map_rows: Vec<MapTap>,
+    map_cols: Vec<MapTap>,
 }
 
 /// Per-layer tallies over cloudy pixels, merged across bands.
@@ -122,35 +148,75 @@ impl StructureStats {
     }
 }
 
+/// Where the map lies on the forecast grid: its region and size, the grid's north-west point
+/// (`north`, `west`) and spacing (`di`, `dj`), and whether the grid wraps around the globe.
+#[derive(Debug, Clone, Copy)]
+pub struct Placement {
+    pub region: Region,
+    pub map_size: (usize, usize),
+    pub north: f64,
+    pub west: f64,
+    pub di: f64,
+    pub dj: f64,
+    pub wrap: bool,
+}
+
 impl PixelSampler {
-    /// Taps for a `width`×`height` map of `region` on the grid whose north-west point is
-    /// (`north`, `west`) with spacing (`di`, `dj`); `wrap` for a global grid.
-    #[allow(clippy::too_many_arguments)]
+    /// Taps for structure images on `lattice` of the map `at` describes.
     pub fn new(
         grid: GridStructure,
         winds: [Option<(Grid32, Grid32)>; 3],
-        region: &Region,
-        width: usize,
-        height: usize,
-        (north, west, di, dj): (f64, f64, f64, f64),
-        wrap: bool,
+        at: Placement,
+        lattice: StructureGrid,
     ) -> PixelSampler {
-        let rows = (0..height)
-            .map(|j| tap((north - region.pixel_lat(j, height)) / dj, grid.nj, false))
-            .collect();
-        let cols = (0..width)
-            .map(|i| {
-                let u = (region.pixel_lon(i, width) - west).rem_euclid(360.0) / di;
-                tap(u, grid.ni, wrap)
-            })
-            .collect();
-        PixelSampler {
+        let mut s = PixelSampler {
             grid,
             winds,
-            rows,
-            cols,
-            width,
-        }
+            rows: vec![],
+            cols: vec![],
+            lattice,
+            width: 0,
+            map_rows: vec![],
+            map_cols: vec![],
+        };
+        s.set_lattice(at, lattice);
+        s
+    }
+
+    /// Sample the structure on `lattice` instead.
+    pub fn set_lattice(&mut self, at: Placement, lattice: StructureGrid) {
+        let g = lattice;
+        let (width, height) = (g.width.max(1) as usize, g.height.max(1) as usize);
+        let (r, ni, nj) = (&at.region, self.grid.ni, self.grid.nj);
+        self.rows = (0..height)
+            .map(|j| {
+                tap(
+                    (at.north - (g.north - j as f64 * g.dlat)) / at.dj,
+                    nj,
+                    false,
+                )
+            })
+            .collect();
+        self.cols = (0..width)
+            .map(|i| {
+                let u = (g.west + i as f64 * g.dlon - at.west).rem_euclid(360.0) / at.di;
+                tap(u, ni, at.wrap)
+            })
+            .collect();
+        let (map_w, map_h) = at.map_size;
+        self.map_rows = (0..map_h)
+            .map(|j| map_tap(g.y(r.pixel_lat(j, map_h)), height))
+            .collect();
+        self.map_cols = (0..map_w)
+            .map(|i| map_tap(g.x(r, r.pixel_lon(i, map_w)), width))
+            .collect();
+        self.lattice = g;
+        self.width = width;
+    }
+
+    /// Where the structure images' pixels lie.
+    pub fn lattice(&self) -> StructureGrid {
+        self.lattice
     }
 
     fn corners(&self, i: usize, j: usize) -> [(usize, f64); 4] {
@@ -246,35 +312,77 @@ impl PixelSampler {
         }
     }
 
-    /// Tally the cloudy pixels of rows `j0..` whose coverage texels are `texels`.
+    /// Tally the cloudy coverage pixels of map rows `j0..` (their texels: `texels`), each
+    /// with the type and source of its nearest structure pixel, as a reader sees them. The
+    /// base/top bounds are over the structure pixels those cloudy pixels blend (bilinear never
+    /// leaves its corners' range, so a reader's march bounds hold). Map rows `j0..` touch a few
+    /// structure rows, so the marks stay small; bands tally independently and merge.
     pub fn tally(&self, j0: usize, texels: &[[u16; 4]], st: &mut StructureStats) {
-        for (n, t) in texels.iter().enumerate() {
-            let (i, j) = (n % self.width, j0 + n / self.width);
-            let k = self.nearest(i, j);
-            for (c, l) in self.grid.layers.iter().enumerate() {
-                let Some(l) = l else { continue };
-                if t[c] == 0 {
+        let map_w = self.map_cols.len();
+        let rows = texels.len() / map_w.max(1);
+        if rows == 0 {
+            return;
+        }
+        let (r_lo, r_hi) = (self.map_rows[j0].a, self.map_rows[j0 + rows - 1].b);
+        let w = self.width;
+        // Bit c: some cloudy pixel of layer c blends this structure pixel.
+        let mut marks = vec![0u8; (r_hi - r_lo + 1) * w];
+        let ni = self.grid.ni;
+        for (dj, row) in texels.chunks_exact(map_w).enumerate() {
+            let r = self.map_rows[j0 + dj];
+            let grid_row = self.rows[r.near].near * ni;
+            for (t, c) in row.iter().zip(&self.map_cols) {
+                if t[3] == 0 {
                     continue;
                 }
-                st.n[c] += 1;
-                if let Some(s) = l.source.get(k) {
-                    st.sources[c][*s as usize] += 1;
+                let k = grid_row + self.cols[c.near].near;
+                let mut bits = 0u8;
+                for (ch, l) in self.grid.layers.iter().enumerate() {
+                    let Some(l) = l else { continue };
+                    if t[ch] == 0 {
+                        continue;
+                    }
+                    bits |= 1 << ch;
+                    st.n[ch] += 1;
+                    if let Some(s) = l.source.get(k) {
+                        st.sources[ch][*s as usize] += 1;
+                    }
+                    if let Some(&ty) = l.cloud_type.get(k) {
+                        st.types[ch][(ty as usize).min(10)] += 1;
+                    }
                 }
-                if let Some(&ty) = l.cloud_type.get(k) {
-                    st.types[c][(ty as usize).min(10)] += 1;
+                if bits != 0 {
+                    for rr in [r.a, r.b] {
+                        let m = (rr - r_lo) * w;
+                        marks[m + c.a] |= bits;
+                        marks[m + c.b] |= bits;
+                    }
+                }
+            }
+        }
+        for (n, &bits) in marks.iter().enumerate() {
+            if bits == 0 {
+                continue;
+            }
+            let (i, j) = (n % w, r_lo + n / w);
+            for (ch, l) in self.grid.layers.iter().enumerate() {
+                let Some(l) = l else { continue };
+                if bits & (1 << ch) == 0 {
+                    continue;
                 }
                 if let Some(b) = self.bilinear(&l.base_m, i, j) {
-                    st.base_min[c] = st.base_min[c].min(b);
+                    st.base_min[ch] = st.base_min[ch].min(b);
                 }
                 if let Some(b) = self.bilinear(&l.top_m, i, j) {
-                    st.top_max[c] = st.top_max[c].max(b);
+                    st.top_max[ch] = st.top_max[ch].max(b);
                 }
             }
         }
     }
 
-    /// The whole structure in memory (rows `0..height`, in parallel).
-    pub fn map_structure(&self, height: usize) -> MapStructure {
+    /// The whole structure in memory (its rows in parallel).
+    pub fn map_structure(&self) -> MapStructure {
+        let height = self.rows.len();
         use rayon::prelude::*;
         type Row = (
             Vec<[u16; 4]>,
@@ -305,6 +413,7 @@ impl PixelSampler {
             })
             .collect();
         let mut s = MapStructure {
+            grid: self.lattice,
             base: Vec::new(),
             top: Vec::new(),
             types: Vec::new(),
