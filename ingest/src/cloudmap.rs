@@ -30,8 +30,9 @@ pub struct CloudMap {
     pub meta: CloudMapMeta,
     /// Row-major, row 0 = north, `width * height` texels.
     pub texels: Vec<[u16; 4]>,
-    /// Per-pixel base, top, type, source and wind (version 3 maps made from a forecast);
-    /// `None` for maps without them, whose layers each have one band and a default type.
+    /// Base, top, type, source and wind on their own, smaller lattice (version 3 maps made
+    /// from a forecast; [`MapStructure::grid`]); `None` for maps without them, whose layers
+    /// each have one band and a default type.
     pub structure: Option<MapStructure>,
 }
 
@@ -120,8 +121,9 @@ impl CloudMap {
     /// Load a CloudMap from its sidecar (`MAP.json`), checking the sidecar ([`load_meta`])
     /// and that the PNG is its own: the size it declares (checked before anything is decoded)
     /// and, for formats 2 and 3, the image id it carries. The extra images of format 3 are
-    /// checked the same way, and the type image's codes against the table; any fault is one
-    /// error naming the file. A set caught between a writer's renames is read again a few
+    /// checked the same way, each against the size of the sidecar's `structure_grid` (the
+    /// map's size where it has none), and the type image's codes against the table; any fault
+    /// is one error naming the file. A set caught between a writer's renames is read again a few
     /// times before it is refused.
     pub fn load(sidecar: &Path) -> Result<CloudMap> {
         let mut attempt = 0;
