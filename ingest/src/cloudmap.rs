@@ -9,11 +9,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{IngestError, Result};
-use crate::meta::{CloudMapMeta, FORMAT};
+use crate::meta::{CloudMapMeta, ExtraImage, ExtraRole, FORMAT};
 pub use crate::output::write_atomic;
-use crate::output::write_pair;
+use crate::output::{write_set, ExtraWriter};
 /// Largest map side, shared by ingest, the loader and the renderer.
 pub use crate::region::MAX_SIDE;
+use crate::structure::MapStructure;
 
 /// The PNG sample value of full coverage: coverage c in 0..1 is stored as round(c × 65535).
 pub const COVERAGE_FULL: f64 = 65535.0;
@@ -29,6 +30,10 @@ pub struct CloudMap {
     pub meta: CloudMapMeta,
     /// Row-major, row 0 = north, `width * height` texels.
     pub texels: Vec<[u16; 4]>,
+    /// Base, top, type, source and wind on their own, smaller lattice (version 3 maps made
+    /// from a forecast; [`MapStructure::grid`]); `None` for maps without them, whose layers
+    /// each have one band and a default type.
+    pub structure: Option<MapStructure>,
 }
 
 impl CloudMap {
@@ -81,6 +86,7 @@ impl CloudMap {
                 altitude_source: AltitudeSource::StandardAtmosphere,
                 mean_coverage: 0.0,
                 max_coverage: 0.0,
+                structure: None,
             })
             .collect();
         CloudMap {
@@ -88,6 +94,8 @@ impl CloudMap {
                 format: FORMAT.to_string(),
                 image: "synthetic.png".into(),
                 image_id: None,
+                extra_images: vec![],
+                structure_grid: None,
                 region,
                 width,
                 height,
@@ -102,22 +110,40 @@ impl CloudMap {
                     grid_nj: 0,
                     grid_di_deg: 0.0,
                     grid_dj_deg: 0.0,
+                    fields: vec![],
                 },
             },
             texels,
+            structure: None,
         }
     }
 
     /// Load a CloudMap from its sidecar (`MAP.json`), checking the sidecar ([`load_meta`])
     /// and that the PNG is its own: the size it declares (checked before anything is decoded)
-    /// and, for format 2, the image id it carries. A pair caught between a writer's two
-    /// renames is read again a few times before it is refused.
+    /// and, for formats 2 and 3, the image id it carries. The extra images of format 3 are
+    /// checked the same way, each against the size of the sidecar's `structure_grid` (the
+    /// map's size where it has none), and the type image's codes against the table; any fault
+    /// is one error naming the file. A set caught between a writer's renames is read again a few
+    /// times before it is refused.
     pub fn load(sidecar: &Path) -> Result<CloudMap> {
         let mut attempt = 0;
         loop {
             let meta = load_meta(sidecar)?;
-            match read_png16(&meta.image_path(sidecar), &meta) {
-                Ok(texels) => return Ok(CloudMap { meta, texels }),
+            let read = read_png16(&meta.image_path(sidecar), &meta).and_then(|texels| {
+                let structure = match meta.extra_images.is_empty() {
+                    true => None,
+                    false => Some(read_structure(sidecar, &meta)?),
+                };
+                Ok((texels, structure))
+            });
+            match read {
+                Ok((texels, structure)) => {
+                    return Ok(CloudMap {
+                        meta,
+                        texels,
+                        structure,
+                    })
+                }
                 Err(PngFault::NotThisPair(_)) if attempt < PAIR_RETRIES => {
                     attempt += 1;
                     std::thread::sleep(PAIR_RETRY_WAIT);
@@ -144,7 +170,43 @@ impl CloudMap {
                 bytes.extend_from_slice(&c.to_be_bytes());
             }
         }
-        write_pair(
+        let mut meta = self.meta.clone();
+        let mut extras: Vec<(PathBuf, ExtraWriter)> = Vec::new();
+        meta.extra_images.clear();
+        meta.structure_grid = None;
+        if let Some(s) = &self.structure {
+            let (sw, sh) = (s.grid.width, s.grid.height);
+            if !s.is_whole() {
+                return Err(IngestError::BadMap(format!(
+                    "structure images are not {sw}x{sh} pixels each"
+                )));
+            }
+            // Checked with the rest of the sidecar before anything is written.
+            meta.structure_grid = Some(s.grid);
+            for role in ExtraRole::ALL {
+                let path = extra_path(png_path, role);
+                meta.extra_images.push(ExtraImage {
+                    role,
+                    image: file_name(&path)?,
+                });
+                let bytes = match role {
+                    ExtraRole::Base => be_bytes(s.base.iter().flatten()),
+                    ExtraRole::Top => be_bytes(s.top.iter().flatten()),
+                    ExtraRole::Type => s.types.iter().flatten().copied().collect(),
+                    ExtraRole::WindU => be_bytes(s.wind_u.iter().flatten()),
+                    ExtraRole::WindV => be_bytes(s.wind_v.iter().flatten()),
+                };
+                extras.push((
+                    path,
+                    Box::new(move |w, id| {
+                        let mut wr = extra_writer(w, role, sw, sh, id)?;
+                        wr.write_image_data(&bytes).map_err(|e| e.to_string())?;
+                        wr.finish().map_err(|e| e.to_string())
+                    }),
+                ));
+            }
+        }
+        write_set(
             png_path,
             &[],
             |w, id| {
@@ -152,9 +214,126 @@ impl CloudMap {
                 wr.write_image_data(&bytes).map_err(|e| e.to_string())?;
                 wr.finish().map_err(|e| e.to_string())
             },
-            |name, id| sidecar_json(&self.meta, name, id, png_path),
+            extras,
+            |name, id| sidecar_json(&meta, name, id, png_path),
         )
     }
+}
+
+fn be_bytes<'a>(v: impl Iterator<Item = &'a u16>) -> Vec<u8> {
+    v.flat_map(|x| x.to_be_bytes()).collect()
+}
+
+/// `MAP.png` → `MAP.<role>.png`, beside it.
+pub fn extra_path(png_path: &Path, role: ExtraRole) -> PathBuf {
+    let stem = png_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    png_path.with_file_name(format!("{stem}.{}.png", role.suffix()))
+}
+
+pub(crate) fn file_name(p: &Path) -> Result<String> {
+    p.file_name()
+        .and_then(|n| n.to_str())
+        .map(str::to_string)
+        .ok_or_else(|| {
+            IngestError::write(p, "the file name is not valid UTF-8; choose a UTF-8 name")
+        })
+}
+
+/// Colour type and bit depth of each extra image.
+pub fn extra_format(role: ExtraRole) -> (png::ColorType, png::BitDepth) {
+    use png::{BitDepth as D, ColorType as C};
+    match role {
+        ExtraRole::Base | ExtraRole::Top => (C::Rgba, D::Sixteen),
+        ExtraRole::Type => (C::Rgba, D::Eight),
+        ExtraRole::WindU | ExtraRole::WindV => (C::Rgb, D::Sixteen),
+    }
+}
+
+/// A PNG writer for an extra image, carrying the set's image id.
+pub(crate) fn extra_writer<W: Write>(
+    w: W,
+    role: ExtraRole,
+    width: u32,
+    height: u32,
+    id: &str,
+) -> std::result::Result<png::Writer<W>, String> {
+    let (ct, bd) = extra_format(role);
+    let mut enc = png::Encoder::new(w, width, height);
+    enc.set_color(ct);
+    enc.set_depth(bd);
+    enc.set_compression(png::Compression::Fast);
+    enc.add_text_chunk(IMAGE_ID_KEYWORD.into(), id.into())
+        .map_err(|e| e.to_string())?;
+    enc.write_header().map_err(|e| e.to_string())
+}
+
+/// Read and check the five extra images `meta` lists, each of the size the sidecar records
+/// ([`CloudMapMeta::structure_pixels`]).
+fn read_structure(
+    sidecar: &Path,
+    meta: &CloudMapMeta,
+) -> std::result::Result<MapStructure, PngFault> {
+    let mut raw = Vec::with_capacity(5);
+    for role in ExtraRole::ALL {
+        let x = meta.extra(role).ok_or_else(|| {
+            PngFault::Other(IngestError::BadCloudMap {
+                path: sidecar.to_path_buf(),
+                msg: format!("extra_images: no {} image", role.suffix()),
+            })
+        })?;
+        let path = sidecar
+            .parent()
+            .unwrap_or_else(|| Path::new("."))
+            .join(&x.image);
+        let (ct, bd) = extra_format(role);
+        let buf = read_image(&path, meta, ct, bd, role.suffix())?;
+        raw.push((path, buf));
+    }
+    let grid = meta.structure_pixels();
+    let (w, h) = (grid.width as usize, grid.height as usize);
+    let n = w * h;
+    let u16s = |b: &[u8]| -> Vec<u16> {
+        b.chunks_exact(2)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]))
+            .collect()
+    };
+    let quad = |b: &[u8]| -> Vec<[u16; 4]> {
+        u16s(b)
+            .chunks_exact(4)
+            .take(n)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect()
+    };
+    let triple = |b: &[u8]| -> Vec<[u16; 3]> {
+        u16s(b)
+            .chunks_exact(3)
+            .take(n)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect()
+    };
+    let s = MapStructure {
+        grid,
+        base: quad(&raw[0].1),
+        top: quad(&raw[1].1),
+        types: raw[2]
+            .1
+            .chunks_exact(4)
+            .take(n)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        wind_u: triple(&raw[3].1),
+        wind_v: triple(&raw[4].1),
+    };
+    if let Some((k, what)) = s.first_bad_type() {
+        return Err(PngFault::Other(IngestError::BadCloudMap {
+            path: raw[2].0.clone(),
+            msg: format!("pixel ({}, {}): {what}", k % w, k / w),
+        }));
+    }
+    Ok(s)
 }
 
 /// The PNG text chunk under which a map's PNG carries its sidecar's `image_id`.
@@ -255,48 +434,13 @@ fn read_png16(path: &Path, meta: &CloudMapMeta) -> std::result::Result<Vec<[u16;
             msg,
         })
     };
-    let f = fs::File::open(path).map_err(|e| PngFault::Other(IngestError::io(path, e)))?;
-    let mut dec = png::Decoder::new_with_limits(
-        std::io::BufReader::new(f),
-        png::Limits {
-            bytes: PNG_DECODER_LIMIT,
-        },
-    );
-    dec.set_transformations(png::Transformations::IDENTITY);
-    let mut reader = dec
-        .read_info()
-        .map_err(|e| bad(format!("not a PNG: {e}")))?;
+    let mut reader = open_checked(path, meta, (width, height))?;
     let info = reader.info();
-    if (info.width, info.height) != (width, height) {
-        return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
-            path: path.to_path_buf(),
-            msg: format!(
-                "PNG is {}x{} but its sidecar says {width}x{height}",
-                info.width, info.height
-            ),
-        }));
-    }
     let (ct, bd) = (info.color_type, info.bit_depth);
     if ct != png::ColorType::Rgba || !matches!(bd, png::BitDepth::Sixteen | png::BitDepth::Eight) {
         return Err(bad(format!(
             "PNG is {ct:?} {bd:?}; a CloudMap is RGBA 16-bit"
         )));
-    }
-    if let Some(want) = &meta.image_id {
-        let got = info
-            .uncompressed_latin1_text
-            .iter()
-            .find(|t| t.keyword == IMAGE_ID_KEYWORD)
-            .map(|t| t.text.as_str());
-        if got != Some(want.as_str()) {
-            return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
-                path: path.to_path_buf(),
-                msg: format!(
-                    "PNG is not the one its sidecar names (image id {} where the sidecar says {want}): another program replaced it, or a write was cut short; run ingest again",
-                    got.unwrap_or("absent")
-                ),
-            }));
-        }
     }
     let mut buf = vec![0u8; reader.output_buffer_size()];
     reader
@@ -322,4 +466,88 @@ fn read_png16(path: &Path, meta: &CloudMapMeta) -> std::result::Result<Vec<[u16;
             .collect()
     };
     Ok(texels)
+}
+
+/// Open a PNG of `meta`'s set and check, before decoding any pixel, that it has the size the
+/// sidecar gives it (`(width, height)`) and carries its image id (formats 2 and 3).
+fn open_checked(
+    path: &Path,
+    meta: &CloudMapMeta,
+    (width, height): (u32, u32),
+) -> std::result::Result<png::Reader<std::io::BufReader<fs::File>>, PngFault> {
+    let bad = |msg: String| {
+        PngFault::Other(IngestError::BadCloudMap {
+            path: path.to_path_buf(),
+            msg,
+        })
+    };
+    let f = fs::File::open(path).map_err(|e| PngFault::Other(IngestError::io(path, e)))?;
+    let mut dec = png::Decoder::new_with_limits(
+        std::io::BufReader::new(f),
+        png::Limits {
+            bytes: PNG_DECODER_LIMIT,
+        },
+    );
+    dec.set_transformations(png::Transformations::IDENTITY);
+    let reader = dec
+        .read_info()
+        .map_err(|e| bad(format!("not a PNG: {e}")))?;
+    let info = reader.info();
+    if (info.width, info.height) != (width, height) {
+        return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
+            path: path.to_path_buf(),
+            msg: format!(
+                "PNG is {}x{} but its sidecar says {width}x{height}",
+                info.width, info.height
+            ),
+        }));
+    }
+    if let Some(want) = &meta.image_id {
+        let got = info
+            .uncompressed_latin1_text
+            .iter()
+            .find(|t| t.keyword == IMAGE_ID_KEYWORD)
+            .map(|t| t.text.as_str());
+        if got != Some(want.as_str()) {
+            return Err(PngFault::NotThisPair(IngestError::BadCloudMap {
+                path: path.to_path_buf(),
+                msg: format!(
+                    "PNG is not the one its sidecar names (image id {} where the sidecar says {want}): another program replaced it, or a write was cut short; run ingest again",
+                    got.unwrap_or("absent")
+                ),
+            }));
+        }
+    }
+    Ok(reader)
+}
+
+/// Read an extra image of `meta`'s set, which must be exactly `ct` `bd` and of the structure
+/// images' recorded size; its raw samples.
+fn read_image(
+    path: &Path,
+    meta: &CloudMapMeta,
+    ct: png::ColorType,
+    bd: png::BitDepth,
+    what: &str,
+) -> std::result::Result<Vec<u8>, PngFault> {
+    let bad = |msg: String| {
+        PngFault::Other(IngestError::BadCloudMap {
+            path: path.to_path_buf(),
+            msg,
+        })
+    };
+    let g = meta.structure_pixels();
+    let mut reader = open_checked(path, meta, (g.width, g.height))?;
+    let info = reader.info();
+    if (info.color_type, info.bit_depth) != (ct, bd) {
+        return Err(bad(format!(
+            "PNG is {:?} {:?}; a map's {what} image is {ct:?} {bd:?}",
+            info.color_type, info.bit_depth
+        )));
+    }
+    let mut buf = vec![0u8; reader.output_buffer_size()];
+    reader
+        .next_frame(&mut buf)
+        .map_err(|e| bad(format!("PNG data is corrupt: {e}")))?;
+    Ok(buf)
 }

@@ -1,5 +1,6 @@
 //! Loading what a CloudMap needs from one GRIB2 file: RH on isobaric levels (and gh on the
-//! same levels for layer altitudes), decoding only those messages.
+//! same levels for layer altitudes), decoding only those messages, and the fields beside RH
+//! that give the map its structure, types and winds ([`WeatherInputs`], all optional).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -9,6 +10,7 @@ use chrono::{DateTime, Utc};
 use crate::error::{IngestError, Result};
 use crate::grib::{self, Field, MessageInfo};
 use crate::region::Region;
+use crate::weather::WeatherInputs;
 
 /// Top of the troposphere the default all-layer ingest folds in, hPa: GFS also carries RH up
 /// to 10 hPa, where no weather cloud forms and the altitude (~30 km) would put "cirrus" in space.
@@ -40,6 +42,8 @@ pub struct Forecast {
     gh: BTreeMap<i64, Field>,
     pub reference_time: Option<DateTime<Utc>>,
     pub step_hours: Option<f64>,
+    /// What the file holds besides RH for the map's structure, types and winds (issue 13).
+    pub weather: WeatherInputs,
 }
 
 fn key(p: f64) -> i64 {
@@ -158,7 +162,14 @@ impl Forecast {
                 }
             }
         }
+        let top = present
+            .iter()
+            .copied()
+            .filter(|p| levels.iter().any(|l| (l.pressure_hpa - p).abs() < 1e-6))
+            .fold(DEFAULT_TOP_HPA, f64::min);
+        let weather = WeatherInputs::load(path, bytes, &msgs, &first_grid, top);
         Ok(Forecast {
+            weather,
             path: path.to_path_buf(),
             reference_time: wanted[0].reference_time,
             step_hours: wanted[0].step_hours,

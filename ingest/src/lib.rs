@@ -3,6 +3,10 @@
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
 //! needed → [`spline`] upsamples onto the region's pixel grid → [`cloudmap`] applies the
 //! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar.
+//! Beside the coverage, [`weather`] derives per grid point and layer the cloud base and top
+//! (GFS's cloud layer, the RH column, or the band), a WMO cloud type and the layer wind, which
+//! the pipeline samples onto the pixels and stores in the images [`structure`] describes
+//! (sidecar format 3); [`CloudMap::probe`] reads them back at a point.
 //!
 //! Files: [`input`] reads every input with a cap; [`output`] writes atomically, never over
 //! what is not a regular file or is an input, commits a map's PNG and sidecar as a pair, and
@@ -19,6 +23,8 @@ pub mod output;
 pub mod pipeline;
 pub mod region;
 pub mod spline;
+pub mod structure;
+pub mod weather;
 
 pub use cloudmap::CloudMap;
 pub use error::{IngestError, Result};

@@ -8,10 +8,17 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 use crate::region::Region;
+use crate::weather::CloudType;
+use std::collections::BTreeMap;
 
 /// Sidecar format tag written now; bumped when a field changes meaning or becomes required.
 /// Version 2 adds `image_id`, which the PNG must carry (see [`crate::output::write_pair`]).
-pub const FORMAT: &str = "stratus-cloudmap/2";
+/// Version 3 adds the structure images (`extra_images`: base, top, type, winds; each carries
+/// the same image id) and per-layer `structure` statistics (docs/ingest.md).
+pub const FORMAT: &str = "stratus-cloudmap/3";
+
+/// The second format, still read: an image id, no structure images.
+pub const FORMAT_V2: &str = "stratus-cloudmap/2";
 
 /// The first sidecar format, still read: no `image_id`, so the PNG is not checked against it.
 pub const FORMAT_V1: &str = "stratus-cloudmap/1";
@@ -74,14 +81,176 @@ impl LayerKind {
     }
 }
 
-/// Where a layer's altitude band came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// Where a layer's altitude band, or one pixel's base and top, came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AltitudeSource {
-    /// Geopotential height (`gh`) on the same levels, averaged over the region.
+    /// Geopotential height (`gh`) on the same levels, averaged over the region (a band).
     GeopotentialHeight,
-    /// ICAO standard atmosphere.
+    /// ICAO standard atmosphere (a band).
     StandardAtmosphere,
+    /// GFS's own cloud bottom and top pressure of the layer, through the point's gh profile.
+    GfsLayer,
+    /// Where the point's RH column crosses the layer's rh_cr.
+    RhColumn,
+}
+
+impl AltitudeSource {
+    pub const fn name(self) -> &'static str {
+        match self {
+            AltitudeSource::GeopotentialHeight => "geopotential-height",
+            AltitudeSource::StandardAtmosphere => "standard-atmosphere",
+            AltitudeSource::GfsLayer => "gfs-layer",
+            AltitudeSource::RhColumn => "rh-column",
+        }
+    }
+}
+
+/// What an extra image of a version-3 map holds (encodings in [`crate::structure`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ExtraRole {
+    /// 16-bit RGBA: cloud base of low, middle, high; A: convective cloud base.
+    Base,
+    /// 16-bit RGBA: cloud top of low, middle, high; A: convective cloud top.
+    Top,
+    /// 8-bit RGBA: cloud type code of low, middle, high; A: base/top source, 2 bits a layer.
+    Type,
+    /// 16-bit RGB: layer-mean eastward / northward wind of low, middle, high.
+    WindU,
+    WindV,
+}
+
+impl ExtraRole {
+    pub const ALL: [ExtraRole; 5] = [
+        ExtraRole::Base,
+        ExtraRole::Top,
+        ExtraRole::Type,
+        ExtraRole::WindU,
+        ExtraRole::WindV,
+    ];
+
+    /// `MAP.png` → `MAP.<suffix>.png`.
+    pub const fn suffix(self) -> &'static str {
+        match self {
+            ExtraRole::Base => "base",
+            ExtraRole::Top => "top",
+            ExtraRole::Type => "type",
+            ExtraRole::WindU => "wind-u",
+            ExtraRole::WindV => "wind-v",
+        }
+    }
+}
+
+/// One extra image of the map, in the sidecar's folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExtraImage {
+    pub role: ExtraRole,
+    pub image: String,
+}
+
+/// Where the structure images' pixels lie (version 3; all five share it): `width`×`height`
+/// pixel centres on a lat/lon lattice, row 0 north, column 0 west. The structure comes from
+/// the forecast grid, so its images are stored at a resolution tied to that grid, never
+/// larger than the map ([`crate::structure::structure_grid`]); readers sample them by
+/// lat/lon: x = (lon − west) / dlon, y = (north − lat) / dlat, clamped to the outer centres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StructureGrid {
+    pub width: u32,
+    pub height: u32,
+    /// Latitude of row 0's pixel centres, degrees; row j is at north − j × dlat.
+    pub north: f64,
+    /// Longitude of column 0's pixel centres, degrees (the region's convention); column i is
+    /// at west + i × dlon.
+    pub west: f64,
+    pub dlat: f64,
+    pub dlon: f64,
+}
+
+impl StructureGrid {
+    /// The map's own pixels: centres half a pixel inside the region's edges.
+    pub fn of_map(region: &Region, width: u32, height: u32) -> StructureGrid {
+        let dlat = (region.north - region.south) / height.max(1) as f64;
+        let dlon = region.lon_span() / width.max(1) as f64;
+        StructureGrid {
+            width,
+            height,
+            north: region.north - 0.5 * dlat,
+            west: region.west + 0.5 * dlon,
+            dlat,
+            dlon,
+        }
+    }
+
+    /// Fractional column (centres at whole numbers) of a longitude, clamped to the outer
+    /// centres; `lon` is taken east of `region`'s west edge, as the map's pixels are.
+    pub fn x(&self, region: &Region, lon: f64) -> f64 {
+        let lon = region.west + (lon - region.west).rem_euclid(360.0);
+        ((lon - self.west) / self.dlon).clamp(0.0, (self.width.max(1) - 1) as f64)
+    }
+
+    /// Fractional row of a latitude, clamped to the outer centres.
+    pub fn y(&self, lat: f64) -> f64 {
+        ((self.north - lat) / self.dlat).clamp(0.0, (self.height.max(1) - 1) as f64)
+    }
+
+    /// Check it against the map: each side 1..= the map's, finite positive spacings, and pixels
+    /// whose extents cover the region (so a reader never samples outside them).
+    fn validate(&self, region: &Region, map: (u32, u32)) -> Result<(), String> {
+        for (name, v, side) in [("width", self.width, map.0), ("height", self.height, map.1)] {
+            if v == 0 || v > side {
+                return Err(format!(
+                    "structure_grid.{name}: {v} px is outside 1..={side} (the map's {name})"
+                ));
+            }
+        }
+        for (name, v) in [("north", self.north), ("west", self.west)] {
+            if !v.is_finite() {
+                return Err(format!("structure_grid.{name}: {v} is not a number"));
+            }
+        }
+        for (name, v) in [("dlat", self.dlat), ("dlon", self.dlon)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "structure_grid.{name}: {v} is not a positive spacing"
+                ));
+            }
+        }
+        let slack = 1e-6;
+        let (w, h) = (self.width as f64, self.height as f64);
+        let east = self.west + (w - 0.5) * self.dlon;
+        let south = self.north - (h - 0.5) * self.dlat;
+        let west_gap = self.west - 0.5 * self.dlon - region.west;
+        if self.north + 0.5 * self.dlat < region.north - slack
+            || south > region.south + slack
+            || west_gap > slack
+            || east < region.west + region.lon_span() - slack
+        {
+            return Err(format!(
+                "structure_grid: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
+                self.width, self.height, self.north, self.west, self.dlat, self.dlon
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A layer's structure over the map (version 3): what the renderer needs before it reads the
+/// images, and what a reader checks at a glance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LayerStructure {
+    /// Lowest base and highest top over the layer's cloudy pixels (coverage > 0), m above sea
+    /// level: the renderer's march bounds. The band when no pixel is cloudy.
+    pub base_min_m: f64,
+    pub top_max_m: f64,
+    /// Pixels with coverage > 0.
+    pub cloudy_pixels: u64,
+    /// Share of the cloudy pixels whose base/top came from each source (sums to 1 when any).
+    pub sources: BTreeMap<AltitudeSource, f64>,
+    /// Share of the cloudy pixels of each cloud type.
+    pub types: BTreeMap<CloudType, f64>,
+    /// Whether the file had winds on this layer's levels (else the wind images hold 0 here).
+    pub wind: bool,
 }
 
 /// One cloud layer of the map.
@@ -100,6 +269,9 @@ pub struct LayerMeta {
     /// Mean and max coverage over the map (0..1), for quick inspection.
     pub mean_coverage: f64,
     pub max_coverage: f64,
+    /// Per-pixel structure summary (version 3 maps with structure images).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub structure: Option<LayerStructure>,
 }
 
 /// Where the forecast came from.
@@ -120,6 +292,9 @@ pub struct SourceMeta {
     pub grid_nj: usize,
     pub grid_di_deg: f64,
     pub grid_dj_deg: f64,
+    /// Fields besides RH the structure was made from (version 3), e.g. `cloud-layer-pressures`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fields: Vec<String>,
 }
 
 /// The sidecar written next to each CloudMap PNG.
@@ -132,6 +307,13 @@ pub struct CloudMapMeta {
     /// does not carry it is not this sidecar's. Absent in format 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_id: Option<String>,
+    /// The structure images (version 3), all carrying `image_id`; empty: no structure, and the
+    /// loader gives each layer its band and default type.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra_images: Vec<ExtraImage>,
+    /// Where the structure images' pixels lie; absent: the map's own pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub structure_grid: Option<StructureGrid>,
     pub region: Region,
     pub width: u32,
     pub height: u32,
@@ -221,6 +403,21 @@ impl CloudMapMeta {
             if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
                 return Err(format!("{at}.levels_hpa: {p} hPa is not a pressure"));
             }
+            if let Some(st) = &l.structure {
+                for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
+                    if !ALTITUDE_RANGE_M.contains(&v) {
+                        return Err(format!(
+                            "{at}.structure.{name}: {v} m is outside {}..={} m",
+                            ALTITUDE_RANGE_M.start(),
+                            ALTITUDE_RANGE_M.end()
+                        ));
+                    }
+                }
+                let fractions = st.sources.values().chain(st.types.values());
+                if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
+                    return Err(format!("{at}.structure: share {v} is outside 0..=1"));
+                }
+            }
         }
         let s = &self.source;
         for (name, v) in [
@@ -236,25 +433,83 @@ impl CloudMapMeta {
     }
 
     fn validate_image(&self) -> Result<(), String> {
-        let name = Path::new(&self.image);
-        let plain = !self.image.is_empty()
-            && name.file_name() == Some(name.as_os_str())
-            && !self.image.contains(['/', '\\']);
-        if !plain {
+        let plain = |name: &str| {
+            let p = Path::new(name);
+            !name.is_empty() && p.file_name() == Some(p.as_os_str()) && !name.contains(['/', '\\'])
+        };
+        if !plain(&self.image) {
             return Err(format!(
                 "image: {:?} is not a file name in the sidecar's folder",
                 self.image
             ));
         }
+        let id_format = matches!(self.format.as_str(), FORMAT | FORMAT_V2);
         match (self.format.as_str(), &self.image_id) {
-            (FORMAT_V1, _) => Ok(()),
-            (FORMAT, Some(id)) if id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()) => {
-                Ok(())
+            (FORMAT_V1, _) => {}
+            (_, Some(id)) if id_format => {
+                if !(id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit())) {
+                    return Err(format!("image_id: {id:?} is not 32 hex digits"));
+                }
             }
-            (FORMAT, Some(id)) => Err(format!("image_id: {id:?} is not 32 hex digits")),
-            (FORMAT, None) => Err(format!("image_id: missing (required by {FORMAT})")),
-            (f, _) => Err(format!("format: {f:?} is not {FORMAT:?} or {FORMAT_V1:?}")),
+            (f, None) if id_format => return Err(format!("image_id: missing (required by {f})")),
+            (f, _) => {
+                return Err(format!(
+                    "format: {f:?} is not {FORMAT:?}, {FORMAT_V2:?} or {FORMAT_V1:?}"
+                ))
+            }
         }
+        if self.extra_images.is_empty() {
+            if self.structure_grid.is_some() {
+                return Err("structure_grid: given without extra_images".into());
+            }
+            return Ok(());
+        }
+        if self.format != FORMAT {
+            return Err(format!(
+                "extra_images: listed in a {} sidecar; only {FORMAT} has them",
+                self.format
+            ));
+        }
+        for (i, x) in self.extra_images.iter().enumerate() {
+            let at = format!("extra_images[{i}] ({})", x.role.suffix());
+            if !plain(&x.image) || x.image == self.image {
+                return Err(format!(
+                    "{at}.image: {:?} is not a file name in the sidecar's folder other than the map's",
+                    x.image
+                ));
+            }
+            if self.extra_images[..i]
+                .iter()
+                .any(|o| o.role == x.role || o.image == x.image)
+            {
+                return Err(format!("{at}: listed twice"));
+            }
+        }
+        if let Some(r) = ExtraRole::ALL
+            .iter()
+            .find(|r| !self.extra_images.iter().any(|x| x.role == **r))
+        {
+            return Err(format!(
+                "extra_images: no {} image (a map has all five or none)",
+                r.suffix()
+            ));
+        }
+        if let Some(g) = &self.structure_grid {
+            g.validate(&self.region, (self.width, self.height))?;
+        }
+        Ok(())
+    }
+
+    /// The extra image of `role`, if the map has structure images.
+    pub fn extra(&self, role: ExtraRole) -> Option<&ExtraImage> {
+        self.extra_images.iter().find(|x| x.role == role)
+    }
+
+    /// Where the structure images' pixels lie: what the sidecar records, the map's own
+    /// pixels where it records nothing (the first version-3 sidecars wrote them so).
+    pub fn structure_pixels(&self) -> StructureGrid {
+        self.structure_grid
+            .unwrap_or_else(|| StructureGrid::of_map(&self.region, self.width, self.height))
     }
 }
 

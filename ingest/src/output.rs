@@ -9,7 +9,8 @@
 //!   FIFO, a directory, a socket or a symbolic link at the target is refused with an error
 //!   naming it, before any work and again just before the rename. An output that is one of
 //!   the command's inputs is refused too ([`ensure_not_input`]).
-//! - **A CloudMap's PNG and sidecar commit together** ([`write_pair`]): see its doc.
+//! - **A CloudMap's PNG and sidecar commit together** ([`write_pair`]), with its extra images
+//!   when it has them ([`write_set`]): see their docs.
 //! - **Temporaries are accounted for**: each one is registered while it exists, so a signal
 //!   handler can remove them ([`cleanup_temps`]); ones a killed process left behind are swept
 //!   from the folder by the next write there once older than [`STALE_TEMP_AGE`].
@@ -314,6 +315,30 @@ where
     P: FnOnce(&mut BufWriter<File>, &str) -> std::result::Result<(), String>,
     S: FnOnce(&str, &str) -> Result<Vec<u8>>,
 {
+    write_set(png, inputs, write_png, Vec::new(), sidecar)
+}
+
+/// Writes one extra image of a map's set: gets the file and the set's image id.
+pub type ExtraWriter<'a> =
+    Box<dyn FnOnce(&mut BufWriter<File>, &str) -> std::result::Result<(), String> + 'a>;
+
+/// [`write_pair`] for a map with extra images (version 3: structure, type, winds): every
+/// image is written to a temporary first, all carry the same image id, and they are renamed
+/// into place under the pair's lock before the PNG, which goes before the sidecar; if any
+/// rename fails, every file already renamed is put back as it was, so the previous set stays
+/// whole. Readers trust an extra image only when it carries the sidecar's image id, as for
+/// the PNG. `extras` are (path, writer); their names go in the sidecar.
+pub fn write_set<'a, P, S>(
+    png: &Path,
+    inputs: &[&Path],
+    write_png: P,
+    extras: Vec<(PathBuf, ExtraWriter<'a>)>,
+    sidecar: S,
+) -> Result<PathBuf>
+where
+    P: FnOnce(&mut BufWriter<File>, &str) -> std::result::Result<(), String>,
+    S: FnOnce(&str, &str) -> Result<Vec<u8>>,
+{
     let json_path = png.with_extension("json");
     if json_path == png {
         return Err(IngestError::write(
@@ -327,23 +352,35 @@ where
             "the file name is not valid UTF-8, and the sidecar records it as text; choose a UTF-8 name",
         )
     })?;
-    for out in [png, json_path.as_path()] {
+    let mut outs: Vec<PathBuf> = extras.iter().map(|(p, _)| p.clone()).collect();
+    outs.extend([png.to_path_buf(), json_path.clone()]);
+    for (k, out) in outs.iter().enumerate() {
+        if outs[..k].contains(out) {
+            return Err(IngestError::write(out, "named twice in one map's files"));
+        }
         check_output(out)?;
         ensure_not_input(out, inputs)?;
     }
     sweep_stale(parent_dir(png));
     let id = new_image_id();
+    // The extra images first, then the PNG: all complete before anything is renamed.
+    let mut temps = Vec::with_capacity(extras.len() + 1);
+    for (path, write) in extras {
+        let tmp = write_temp(&path, |w| write(w, &id))?;
+        temps.push((path, tmp));
+    }
     let png_tmp = write_temp(png, |w| write_png(w, &id))?;
+    temps.push((png.to_path_buf(), png_tmp));
     let json = sidecar(name, &id)?;
     let json_tmp = write_temp(&json_path, |w| {
         w.write_all(&json).map_err(|e| e.to_string())
     })?;
     let _pair = PairLock::acquire(&json_path)?;
     let _g = commit_guard(png)?;
-    for out in [png, json_path.as_path()] {
+    for out in &outs {
         check_output(out)?;
     }
-    commit_pair(png, png_tmp, &json_path, json_tmp)?;
+    commit_set(temps, &json_path, json_tmp)?;
     Ok(json_path)
 }
 
@@ -353,13 +390,52 @@ thread_local! {
     pub(crate) static FAIL_SIDECAR_RENAME: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
-fn commit_pair(png: &Path, png_tmp: Temp, json: &Path, json_tmp: Temp) -> Result<()> {
-    let kept = keep_previous(png)?;
-    if let Err(e) = png_tmp.persist(png) {
-        if let Some(k) = &kept {
-            let _ = fs::remove_file(k);
+/// A file renamed into place during a commit, and what was there before it.
+struct Committed {
+    path: PathBuf,
+    kept: Option<PathBuf>,
+}
+
+/// Put back every file of `done` as it was before the commit (best effort; what could not be
+/// put back is named in the returned text).
+fn roll_back(done: Vec<Committed>) -> String {
+    let mut also = String::new();
+    for c in done.into_iter().rev() {
+        let restored = match &c.kept {
+            Some(k) => fs::rename(k, &c.path),
+            None => fs::remove_file(&c.path),
+        };
+        if let Err(r) = restored {
+            also.push_str(&format!(
+                "; the previous {} could not be put back ({r}){}",
+                shown(&c.path),
+                c.kept
+                    .as_deref()
+                    .map_or_else(String::new, |k| format!(" and is kept as {}", shown(k)))
+            ));
         }
-        return Err(IngestError::write(png, e));
+    }
+    also
+}
+
+fn commit_set(files: Vec<(PathBuf, Temp)>, json: &Path, json_tmp: Temp) -> Result<()> {
+    let mut done: Vec<Committed> = Vec::with_capacity(files.len());
+    for (path, tmp) in files {
+        let kept = match keep_previous(&path) {
+            Ok(k) => k,
+            Err(e) => {
+                roll_back(done);
+                return Err(e);
+            }
+        };
+        if let Err(e) = tmp.persist(&path) {
+            if let Some(k) = &kept {
+                let _ = fs::remove_file(k);
+            }
+            let also = roll_back(done);
+            return Err(IngestError::write(&path, format!("{e}{also}")));
+        }
+        done.push(Committed { path, kept });
     }
     #[cfg(test)]
     let json_result = if FAIL_SIDECAR_RENAME.with(|f| f.replace(false)) {
@@ -370,23 +446,13 @@ fn commit_pair(png: &Path, png_tmp: Temp, json: &Path, json_tmp: Temp) -> Result
     #[cfg(not(test))]
     let json_result = json_tmp.persist(json);
     if let Err(e) = json_result {
-        // Put the previous PNG back beside the previous sidecar.
-        let restored = match &kept {
-            Some(k) => fs::rename(k, png),
-            None => fs::remove_file(png),
-        };
-        let also = match restored {
-            Ok(()) => String::new(),
-            Err(r) => format!(
-                "; the previous PNG could not be put back ({r}) and is kept as {}",
-                kept.as_deref()
-                    .map_or_else(String::new, |k| shown(k).to_string())
-            ),
-        };
+        let also = roll_back(done);
         return Err(IngestError::write(json, format!("{e}{also}")));
     }
-    if let Some(k) = kept {
-        let _ = fs::remove_file(k);
+    for c in done {
+        if let Some(k) = c.kept {
+            let _ = fs::remove_file(k);
+        }
     }
     Ok(())
 }
@@ -632,6 +698,43 @@ mod tests {
         )
         .unwrap_err();
         assert!(!png2.exists());
+    }
+
+    #[test]
+    fn a_failed_sidecar_rename_puts_every_extra_image_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("m.png");
+        let extra = dir.path().join("m.base.png");
+        let write = |tag: &'static str| {
+            let extras: Vec<(PathBuf, ExtraWriter)> = vec![(
+                extra.clone(),
+                Box::new(move |w: &mut BufWriter<File>, id: &str| {
+                    w.write_all(format!("{tag} {id}").as_bytes())
+                        .map_err(|e| e.to_string())
+                }),
+            )];
+            write_set(
+                &png,
+                &[],
+                move |w, _| w.write_all(tag.as_bytes()).map_err(|e| e.to_string()),
+                extras,
+                move |_, id| Ok(format!("{tag} {id}").into_bytes()),
+            )
+        };
+        write("old").unwrap();
+        let before = fs::read(&extra).unwrap();
+        // The extra image and the sidecar carry the same id.
+        assert_eq!(before, fs::read(dir.path().join("m.json")).unwrap());
+        FAIL_SIDECAR_RENAME.with(|f| f.set(true));
+        write("new").unwrap_err();
+        assert_eq!(fs::read(&extra).unwrap(), before);
+        assert_eq!(fs::read(&png).unwrap(), b"old");
+        let mut left: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["m.base.png", "m.json", "m.png"]);
     }
 
     #[test]

@@ -10,15 +10,22 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::cloudmap::{
-    coverage_to_sample, rgba16_writer, sidecar_json, CloudMap, COVERAGE_FULL, MAX_SIDE,
+    coverage_to_sample, extra_path, extra_writer, file_name, rgba16_writer, sidecar_json, CloudMap,
+    COVERAGE_FULL, MAX_SIDE,
 };
 use crate::error::shown;
 use crate::error::{IngestError, Result};
-use crate::forecast::Forecast;
-use crate::meta::{AltitudeSource, CloudMapMeta, LayerKind, LayerMeta, SourceMeta, FORMAT};
-use crate::output::write_pair;
+use crate::forecast::{Forecast, RhLevel};
+use crate::meta::{
+    AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
+    StructureGrid, FORMAT,
+};
+use crate::output::{write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
+use crate::structure::structure_grid;
+use crate::weather::pixels::{PixelSampler, Placement, StructureStats};
+use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
 
 /// What the user asked of one ingest.
 #[derive(Debug, Clone)]
@@ -71,6 +78,12 @@ pub struct Plan {
     /// The forecast file read, which the output must not replace.
     source: PathBuf,
     pub meta: CloudMapMeta,
+    /// Per-pixel structure, types and winds (issue 13), and what recomputes it when rh_cr
+    /// changes (the RH-column source depends on it).
+    sampler: PixelSampler,
+    placement: Placement,
+    rh: Vec<RhLevel>,
+    weather: WeatherInputs,
 }
 
 impl Plan {
@@ -156,7 +169,30 @@ impl Plan {
         let meta = build_meta(fc, opts, &grid)?;
         // Refuse now, not after the work, a map the loader would refuse.
         meta.validate_content().map_err(IngestError::BadMap)?;
+        let structure =
+            GridStructure::compute(&fc.levels, &fc.weather, &layer_specs(&meta), ni, nj);
+        // The structure images on the grid's lattice, not at the map's size (docs/ingest.md).
+        let lattice = structure_grid(
+            (opts.width, opts.height),
+            r,
+            (grid.north(), grid.west()),
+            (grid.di, grid.dj),
+        );
+        let placement = Placement {
+            region: *r,
+            map_size: (w, h),
+            north: grid.north(),
+            west: grid.west(),
+            di: grid.di,
+            dj: grid.dj,
+            wrap: global,
+        };
+        let sampler = PixelSampler::new(structure, fc.weather.wind.clone(), placement, lattice);
         Ok(Plan {
+            sampler,
+            placement,
+            rh: fc.levels.clone(),
+            weather: fc.weather.clone(),
             levels,
             rows,
             cols,
@@ -210,23 +246,90 @@ impl Plan {
         out
     }
 
-    /// Build the whole map in memory (for the renderer, tests and live re-derivation).
-    pub fn build(&self) -> CloudMap {
-        let bands = self.bands();
-        let texels: Vec<[u16; 4]> = bands
-            .par_iter()
-            .map(|&(a, b)| self.rows(a, b))
-            .collect::<Vec<_>>()
-            .concat();
-        let mut meta = self.meta.clone();
-        fill_stats(&mut meta, &texels);
-        CloudMap { meta, texels }
+    /// Coverage texels of rows `j0..j1` and the structure tally of their cloudy pixels.
+    fn band(&self, j0: usize, j1: usize) -> (Vec<[u16; 4]>, StructureStats) {
+        let texels = self.rows(j0, j1);
+        let mut st = StructureStats::new();
+        self.sampler.tally(j0, &texels, &mut st);
+        (texels, st)
     }
 
-    fn bands(&self) -> Vec<(usize, usize)> {
+    /// Build the whole map in memory (for the renderer, tests and live re-derivation).
+    pub fn build(&self) -> CloudMap {
+        let bands = self.bands(self.height);
+        let parts: Vec<_> = bands.par_iter().map(|&(a, b)| self.band(a, b)).collect();
+        let mut st = StructureStats::new();
+        let mut texels = Vec::with_capacity(self.width * self.height);
+        for (t, s) in parts {
+            texels.extend(t);
+            st.merge(&s);
+        }
+        let mut meta = self.meta.clone();
+        fill_stats(&mut meta, &texels);
+        self.apply_structure(&mut meta, &st);
+        let structure = Some(self.sampler.map_structure());
+        CloudMap {
+            meta,
+            texels,
+            structure,
+        }
+    }
+
+    /// Put the structure summary of `st` into `meta`'s layers.
+    fn apply_structure(&self, meta: &mut CloudMapMeta, st: &StructureStats) {
+        for l in &mut meta.layers {
+            let c = l.channel;
+            let wind = self.sampler.winds[c].is_some();
+            l.structure = Some(st.layer(c, (l.base_m, l.top_m), l.altitude_source, wind));
+        }
+    }
+
+    /// The extra images of a map written to `png_path`: (path, streaming writer), and the
+    /// sidecar's list of them.
+    fn extra_writers<'a>(&'a self, png_path: &Path) -> Result<(ExtraSet<'a>, Vec<ExtraImage>)> {
+        let mut writers: Vec<(PathBuf, ExtraWriter<'a>)> = Vec::new();
+        let mut listed = Vec::new();
+        let g = self.sampler.lattice();
+        let (w, h) = (g.width as usize, g.height as usize);
+        for role in ExtraRole::ALL {
+            let path = extra_path(png_path, role);
+            listed.push(ExtraImage {
+                role,
+                image: file_name(&path)?,
+            });
+            writers.push((
+                path,
+                Box::new(move |out, id| {
+                    let mut wr = extra_writer(out, role, w as u32, h as u32, id)?;
+                    let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
+                    let bands = self.bands(h);
+                    for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
+                        let parts: Vec<Vec<u8>> = chunk
+                            .par_iter()
+                            .map(|&(a, b)| {
+                                let mut v = Vec::new();
+                                for j in a..b {
+                                    self.sampler.append_row(role, j, &mut v);
+                                }
+                                v
+                            })
+                            .collect();
+                        for p in parts {
+                            sw.write_all(&p).map_err(|e| e.to_string())?;
+                        }
+                    }
+                    sw.finish().map_err(|e| e.to_string())
+                }),
+            ));
+        }
+        Ok((writers, listed))
+    }
+
+    /// Rows `0..height` in bands of 32.
+    fn bands(&self, height: usize) -> Vec<(usize, usize)> {
         let band = 32;
-        (0..self.height.div_ceil(band))
-            .map(|b| (b * band, ((b + 1) * band).min(self.height)))
+        (0..height.div_ceil(band))
+            .map(|b| (b * band, ((b + 1) * band).min(height)))
             .collect()
     }
 
@@ -235,9 +338,11 @@ impl Plan {
     /// pair (if any) is left as it was. Neither file may be the forecast file read.
     /// `progress` is called with the number of rows done.
     pub fn write(&self, png_path: &Path, progress: &(dyn Fn(usize) + Sync)) -> Result<PathBuf> {
-        let bands = self.bands();
+        let bands = self.bands(self.height);
         let stats = std::cell::RefCell::new(Stats::default());
-        write_pair(
+        let structure_stats = std::cell::RefCell::new(StructureStats::new());
+        let (extras, listed) = self.extra_writers(png_path)?;
+        write_set(
             png_path,
             &[self.source.as_path()],
             |w, id| {
@@ -245,12 +350,13 @@ impl Plan {
                 let mut sw = wr.stream_writer().map_err(|e| e.to_string())?;
                 let mut done = 0;
                 let mut st = Stats::default();
+                let mut sst = StructureStats::new();
                 // A few bands per core at a time bounds memory; order is kept by `collect`.
                 for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
-                    let parts: Vec<Vec<[u16; 4]>> =
-                        chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
-                    for (p, &(a, b)) in parts.iter().zip(chunk) {
+                    let parts: Vec<_> = chunk.par_iter().map(|&(a, b)| self.band(a, b)).collect();
+                    for ((p, s), &(a, b)) in parts.iter().zip(chunk) {
                         st.add(p);
+                        sst.merge(s);
                         let mut bytes = Vec::with_capacity(p.len() * 8);
                         for t in p {
                             for c in t {
@@ -264,11 +370,16 @@ impl Plan {
                 }
                 sw.finish().map_err(|e| e.to_string())?;
                 *stats.borrow_mut() = st;
+                *structure_stats.borrow_mut() = sst;
                 Ok(())
             },
+            extras,
             |name, id| {
                 let mut meta = self.meta.clone();
                 stats.borrow().apply(&mut meta);
+                self.apply_structure(&mut meta, &structure_stats.borrow());
+                meta.extra_images = listed;
+                meta.structure_grid = Some(self.sampler.lattice());
                 sidecar_json(&meta, name, id, png_path)
             },
         )
@@ -276,6 +387,18 @@ impl Plan {
 
     pub fn height(&self) -> usize {
         self.height
+    }
+
+    /// Where the structure images this plan writes lie: [`structure_grid`] unless changed.
+    pub fn structure_grid(&self) -> StructureGrid {
+        self.sampler.lattice()
+    }
+
+    /// Sample the structure images at the map's own pixels instead (every pixel, as a
+    /// full-resolution reference for the reduced images).
+    pub fn use_map_pixels_for_structure(&mut self) {
+        let g = StructureGrid::of_map(&self.meta.region, self.width as u32, self.height as u32);
+        self.sampler.set_lattice(self.placement, g);
     }
 
     /// Change the critical humidities (low, middle, high) without re-reading the file: the RH
@@ -290,6 +413,9 @@ impl Plan {
         for l in &mut self.meta.layers {
             l.rh_cr = rh_cr[l.channel];
         }
+        let (ni, nj) = (self.sampler.grid.ni, self.sampler.grid.nj);
+        self.sampler.grid =
+            GridStructure::compute(&self.rh, &self.weather, &layer_specs(&self.meta), ni, nj);
         Ok(())
     }
 }
@@ -387,12 +513,15 @@ fn build_meta(
             },
             mean_coverage: 0.0,
             max_coverage: 0.0,
+            structure: None,
         });
     }
     Ok(CloudMapMeta {
         format: FORMAT.into(),
         image: String::new(),
         image_id: None,
+        extra_images: vec![],
+        structure_grid: None,
         region: opts.region,
         width: opts.width,
         height: opts.height,
@@ -407,8 +536,25 @@ fn build_meta(
             grid_nj: grid.nj,
             grid_di_deg: grid.di,
             grid_dj_deg: grid.dj,
+            fields: fc.weather.found.iter().map(|s| s.to_string()).collect(),
         },
     })
+}
+
+/// Extra images to write: (path, streaming writer).
+type ExtraSet<'a> = Vec<(PathBuf, ExtraWriter<'a>)>;
+
+/// The layers of `meta` as the structure needs them.
+fn layer_specs(meta: &CloudMapMeta) -> Vec<LayerSpec> {
+    meta.layers
+        .iter()
+        .map(|l| LayerSpec {
+            kind: l.kind,
+            rh_cr: l.rh_cr,
+            band_base_m: l.base_m,
+            band_top_m: l.top_m,
+        })
+        .collect()
 }
 
 #[cfg(test)]
