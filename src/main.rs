@@ -26,6 +26,8 @@ enum Command {
     Inspect(cmd::inspect::Args),
     /// GRIB2 relative humidity → CloudMap PNG + JSON sidecar.
     Ingest(cmd::ingest::Args),
+    /// What a CloudMap holds at a point, per layer: coverage, base, top, type.
+    Probe(cmd::probe::Args),
     /// Render one frame of a CloudMap to PNG, headless.
     Render(cmd::render::Args),
     /// Top-down render vs the CloudMap: Dice, IoU, precision, recall; a CI gate with --min-dice.
@@ -80,6 +82,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Ingest(a) => cmd::ingest::run(a),
+        Command::Probe(a) => cmd::probe::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Demo(a) => cmd::demo::run(a),

@@ -286,3 +286,62 @@ fn bit_flips_in_a_real_message_never_panic_or_leave_output() {
     println!("bit flips: {refused} refused, {accepted} decoded to other values");
     assert!(refused > 0);
 }
+
+/// `probe` on the real sample: the JSON users script against (exact keys), the North Atlantic
+/// convective tower the file holds near 50°N 25°W (GFS's own middle-cloud bottom and top,
+/// verified against ecCodes in docs/ingest.md), and a point outside the map refused.
+#[test]
+fn probe_reports_the_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("natl.png");
+    let file = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let o = stratus(&[
+        "ingest",
+        file.to_str().unwrap(),
+        "--region",
+        "30,70,-60,30",
+        "--size",
+        "180x80",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let map = dir.path().join("natl.json");
+    let map = map.to_str().unwrap();
+    let o = stratus(&["probe", "--map", map, "--at", "50,-25", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("probe JSON");
+    assert_eq!(
+        (v["lat"].as_f64(), v["lon"].as_f64()),
+        (Some(50.0), Some(-25.0))
+    );
+    let layers = v["layers"].as_array().expect("layers");
+    assert_eq!(layers.len(), 3);
+    for l in layers {
+        let keys: Vec<&str> = l.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        let mut sorted = keys.clone();
+        sorted.sort();
+        assert_eq!(
+            sorted,
+            ["base_m", "coverage", "kind", "source", "top_m", "type"],
+            "{l}"
+        );
+    }
+    let middle = &layers[1];
+    assert_eq!(middle["kind"], "middle");
+    assert_eq!(middle["type"], "cumulonimbus");
+    assert_eq!(middle["source"], "gfs-layer");
+    let (base, top) = (
+        middle["base_m"].as_f64().unwrap(),
+        middle["top_m"].as_f64().unwrap(),
+    );
+    assert!(
+        (base - 3561.0).abs() < 2.0 && (top - 6472.0).abs() < 2.0,
+        "{base} {top}"
+    );
+    let o = stratus(&["probe", "--map", map, "--at", "10,-25"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("outside the map's region"), "{err}");
+}

@@ -186,9 +186,13 @@ impl Temp {
         let (file, path) = b
             .tempfile_in(dir)
             .map_err(|e| {
+                // tempfile appends ` at path "…"` (the random temp name) to the OS error: the
+                // folder is named already, so keep the OS error alone.
+                let full = e.to_string();
+                let os = full.split(" at path ").next().unwrap_or(&full).to_string();
                 IngestError::write(
                     target,
-                    format!("cannot create a temporary file in {}: {e}", shown(dir)),
+                    format!("cannot create a temporary file in {}: {os}", shown(dir)),
                 )
             })?
             .into_parts();

@@ -19,6 +19,7 @@ pub mod fly;
 pub mod ingest;
 pub mod inspect;
 pub mod options;
+pub mod probe;
 pub mod render;
 pub mod score;
 

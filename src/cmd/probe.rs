@@ -1,0 +1,66 @@
+//! `stratus probe`: what a map holds at one point, per layer — coverage, cloud base and top, type
+//! and where the heights came from. What a user checks a map against a sounding or a METAR with.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::error::shown;
+
+use super::options::parse_numbers;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// CloudMap sidecar (MAP.json).
+    #[arg(long)]
+    pub map: PathBuf,
+    /// The point, LAT,LON in degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub at: String,
+    /// Print JSON: {"lat", "lon", "layers": [{"kind", "coverage", "base_m", "top_m", "type", "source"}]}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let v = parse_numbers(&a.at, 2, "--at")?;
+    let (lat, lon) = (v[0], v[1]);
+    let map = CloudMap::load(&a.map)?;
+    let r = map.meta.region;
+    let Some(p) = map.probe(lat, lon) else {
+        anyhow::bail!(
+            "{}: {lat},{lon} is outside the map's region ({}..{}°N, {}..{}°E)",
+            shown(&a.map),
+            r.south,
+            r.north,
+            r.west,
+            r.east
+        );
+    };
+    if a.json {
+        out!("{}", serde_json::to_string_pretty(&p)?)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    out!("{lat:.4}, {lon:.4} in {}", shown(&a.map))?;
+    out!(
+        "{:<7} {:>8} {:>8} {:>8}  {:<14} source",
+        "layer",
+        "coverage",
+        "base m",
+        "top m",
+        "type"
+    )?;
+    let m = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}"));
+    for l in &p.layers {
+        out!(
+            "{:<7} {:>8.3} {:>8} {:>8}  {:<14} {}",
+            l.kind.name(),
+            l.coverage,
+            m(l.base_m),
+            m(l.top_m),
+            l.cloud_type.map_or("-", |t| t.name()),
+            l.source.name()
+        )?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
