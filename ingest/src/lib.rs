@@ -12,6 +12,7 @@ pub mod cloudmap;
 pub mod encode;
 pub mod error;
 pub mod forecast;
+pub mod geotiff;
 pub mod grib;
 pub mod input;
 pub mod meta;
