@@ -436,6 +436,8 @@ fn encode_tile(tile: &mut [[u16; 4]], deflate: bool) -> Vec<u8> {
     if !deflate {
         return raw;
     }
+    // Level 6, zlib's and GDAL's default: measured (docs/ingest.md) 40 % smaller than level 1
+    // on a regional map, at 2.5-3x the time; a COG is written once and served many times.
     let mut z = flate2::write::ZlibEncoder::new(
         Vec::with_capacity(raw.len() / 4),
         flate2::Compression::new(6),

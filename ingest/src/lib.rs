@@ -2,7 +2,8 @@
 //!
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
 //! needed → [`spline`] upsamples onto the region's pixel grid → [`cloudmap`] applies the
-//! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar.
+//! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar,
+//! or ([`geotiff`]) one tiled, georeferenced GeoTIFF with overviews.
 //!
 //! Files: [`input`] reads every input with a cap; [`output`] writes atomically, never over
 //! what is not a regular file or is an input, commits a map's PNG and sidecar as a pair, and
