@@ -2,7 +2,8 @@
 //!
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
 //! needed → [`spline`] upsamples onto the region's pixel grid → [`cloudmap`] applies the
-//! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar.
+//! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar,
+//! or ([`geotiff`]) one tiled, georeferenced GeoTIFF with overviews.
 //! Beside the coverage, [`weather`] derives per grid point and layer the cloud base and top
 //! (GFS's cloud layer, the RH column, or the band), a WMO cloud type and the layer wind, which
 //! the pipeline samples onto the pixels and stores in the images [`structure`] describes
@@ -16,6 +17,7 @@ pub mod cloudmap;
 pub mod encode;
 pub mod error;
 pub mod forecast;
+pub mod geotiff;
 pub mod grib;
 pub mod input;
 pub mod meta;

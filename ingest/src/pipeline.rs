@@ -16,16 +16,28 @@ use crate::cloudmap::{
 use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, RhLevel};
+use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter};
 use crate::meta::{
     AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
     StructureGrid, FORMAT,
 };
-use crate::output::{write_set, ExtraWriter};
+use crate::output::{check_output, ensure_not_input, write_atomic, write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
 use crate::structure::structure_grid;
 use crate::weather::pixels::{PixelSampler, Placement, StructureStats};
 use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
+
+/// Descriptions of a GeoTIFF CloudMap's bands, in band order (the PNG's R, G, B, A).
+pub const LAYER_BANDS: [&str; 4] = [
+    "low cloud coverage",
+    "middle cloud coverage",
+    "high cloud coverage",
+    "total cloud coverage (max of the layers)",
+];
+
+/// The GDAL metadata item under which a GeoTIFF CloudMap carries its sidecar's JSON.
+pub const GEOTIFF_META_ITEM: &str = "STRATUS_CLOUDMAP";
 
 /// What the user asked of one ingest.
 #[derive(Debug, Clone)]
@@ -383,6 +395,64 @@ impl Plan {
                 sidecar_json(&meta, name, id, png_path)
             },
         )
+    }
+
+    /// Stream the map to a GeoTIFF at `tif_path` ([`crate::geotiff`]: tiled, with overviews,
+    /// COG layout, EPSG:4326), written atomically ([`crate::output::write_atomic`]); it may
+    /// not be the forecast file read. No sidecar is written: the sidecar's content (layers,
+    /// times, source) is carried in the file as the GDAL metadata item `STRATUS_CLOUDMAP`.
+    /// Returns that metadata, coverage statistics filled in. `progress` is called with the
+    /// number of rows done.
+    pub fn write_geotiff(
+        &self,
+        tif_path: &Path,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<CloudMapMeta> {
+        check_output(tif_path)?;
+        ensure_not_input(tif_path, &[self.source.as_path()])?;
+        let name = tif_path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| {
+                IngestError::write(
+                    tif_path,
+                    "the file name is not valid UTF-8, and the map's metadata records it as text; choose a UTF-8 name",
+                )
+            })?;
+        let spec = GeoTiffSpec {
+            width: self.width as u32,
+            height: self.height as u32,
+            georef: GeoRef::of_region(&self.meta.region, self.width as u32, self.height as u32),
+            band_names: LAYER_BANDS.map(String::from),
+            deflate: true,
+        };
+        let bands = self.bands(self.height);
+        let mut done_meta = None;
+        write_atomic(tif_path, |w| {
+            let mut gt = GeoTiffWriter::new(spec).map_err(|e| e.to_string())?;
+            let mut done = 0;
+            let mut st = Stats::default();
+            for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
+                let parts: Vec<Vec<[u16; 4]>> =
+                    chunk.par_iter().map(|&(a, b)| self.rows(a, b)).collect();
+                for (p, &(a, b)) in parts.iter().zip(chunk) {
+                    st.add(p);
+                    gt.push_rows(p).map_err(|e| e.to_string())?;
+                    done += b - a;
+                }
+                progress(done);
+            }
+            let mut meta = self.meta.clone();
+            st.apply(&mut meta);
+            meta.image = name.to_string();
+            meta.image_id = None;
+            let json = serde_json::to_string(&meta).map_err(|e| e.to_string())?;
+            gt.finish(w, &[(GEOTIFF_META_ITEM, &json)])
+                .map_err(|e| e.to_string())?;
+            done_meta = Some(meta);
+            Ok(())
+        })?;
+        done_meta.ok_or_else(|| IngestError::write(tif_path, "nothing was written"))
     }
 
     pub fn height(&self) -> usize {

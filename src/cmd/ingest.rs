@@ -1,4 +1,6 @@
-//! `stratus ingest`: GRIB2 relative humidity → CloudMap PNG + sidecar, with a progress bar.
+//! `stratus ingest`: GRIB2 relative humidity → CloudMap, with a progress bar. The output's
+//! extension chooses the format: `.png` writes the PNG + `.json` sidecar pair, `.tif`/`.tiff`
+//! one georeferenced, tiled GeoTIFF with overviews (no sidecar: its metadata is inside).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -16,30 +18,55 @@ pub struct Args {
     pub file: PathBuf,
     #[command(flatten)]
     pub ingest: IngestOpts,
-    /// Output PNG; the sidecar goes next to it with a .json extension.
+    /// Output: MAP.png (the sidecar goes next to it with a .json extension) or MAP.tif
+    /// (a GeoTIFF in EPSG:4326, tiled, with overviews; no sidecar).
     #[arg(long)]
     pub out: PathBuf,
 }
 
+/// The output formats, chosen by the extension.
+enum Format {
+    Png,
+    GeoTiff,
+}
+
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if args.out.extension().and_then(|e| e.to_str()) != Some("png") {
-        anyhow::bail!("{}: output must be a .png file", shown(&args.out));
-    }
+    let ext = args.out.extension().and_then(|e| e.to_str());
+    let format = match ext.map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => Format::Png,
+        Some("tif" | "tiff") => Format::GeoTiff,
+        _ => anyhow::bail!(
+            "{}: output must be a .png file (CloudMap PNG + .json sidecar) or a .tif/.tiff file (GeoTIFF)",
+            shown(&args.out)
+        ),
+    };
     // Before the forecast is read: a bad output fails at once. (The write checks again.)
     let inputs = [args.file.clone()];
     check_out(&args.out, &inputs)?;
-    check_out(&args.out.with_extension("json"), &inputs)?;
+    if let Format::Png = format {
+        check_out(&args.out.with_extension("json"), &inputs)?;
+    }
     let t0 = Instant::now();
     let plan = args.ingest.plan(&args.file)?;
     let pb = progress_bar(plan.height() as u64, "ingest rows");
+    let progress = |done| pb.set_position(done as u64);
     // The library's error names the file; no context is added, so it is named once.
-    let sidecar = plan.write(&args.out, &|done| pb.set_position(done as u64))?;
-    pb.finish_and_clear();
-    let meta = load_meta(&sidecar)?;
+    let (meta, written) = match format {
+        Format::Png => {
+            let sidecar = plan.write(&args.out, &progress)?;
+            pb.finish_and_clear();
+            let written = format!("{} + {}", shown(&args.out), shown(&sidecar));
+            (load_meta(&sidecar)?, written)
+        }
+        Format::GeoTiff => {
+            let meta = plan.write_geotiff(&args.out, &progress)?;
+            pb.finish_and_clear();
+            (meta, format!("{} (GeoTIFF)", shown(&args.out)))
+        }
+    };
     out!(
-        "{} + {}: {}x{} px, {} layer(s), {:.2} s",
-        shown(&args.out),
-        shown(&sidecar),
+        "{}: {}x{} px, {} layer(s), {:.2} s",
+        written,
         meta.width,
         meta.height,
         meta.layers.len(),
