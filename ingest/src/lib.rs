@@ -11,6 +11,7 @@
 pub mod cloudmap;
 pub mod encode;
 pub mod error;
+pub mod fetch;
 pub mod forecast;
 pub mod grib;
 pub mod input;
