@@ -156,15 +156,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         out_dir: args.out.clone(),
         parallel: args.parallel,
     };
-    for &step in &steps {
+    let result = fetch_steps(&fetcher, &steps);
+    // Whole ranges stay for the next run; an empty cache folder does not.
+    fetcher.cache.remove_if_empty();
+    result?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn fetch_steps(fetcher: &Fetcher, steps: &[u32]) -> anyhow::Result<()> {
+    for &step in steps {
         let plan = fetcher.plan(step)?;
         let bar = Bar {
             pb: bytes_bar(plan.known_bytes(), &format!("f{step:03}")),
             downloaded: AtomicI64::new(0),
             cached: AtomicU64::new(0),
         };
-        let size = fetcher.fetch(&plan, &bar)?;
+        let size = fetcher.fetch(&plan, &bar);
+        // Cleared before any error line, so that line stands alone.
         bar.pb.finish_and_clear();
+        let size = size?;
         out!(
             "{}: {} messages, {} bytes in {} range(s) ({} downloaded, {} from the cache)",
             shown(&plan.out),
@@ -175,6 +185,5 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             bar.cached.load(Ordering::Relaxed)
         )?;
     }
-    fetcher.cache.remove_if_empty();
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }

@@ -203,7 +203,8 @@ pub fn parse_steps(s: &str) -> Result<Vec<u32>, String> {
                 b.trim().parse().map_err(|_| bad())?,
                 by.trim().parse().map_err(|_| bad())?,
             );
-            if by == 0 || a > b {
+            // Bounded before expanding, so a huge range is refused, not built.
+            if by == 0 || a > b || b > 9999 {
                 return Err(bad());
             }
             out.extend((a..=b).step_by(by as usize));
@@ -315,7 +316,16 @@ mod tests {
         assert_eq!(parse_steps("6").unwrap(), vec![6]);
         assert_eq!(parse_steps("12,0,6,6").unwrap(), vec![0, 6, 12]);
         assert_eq!(parse_steps("0-12/6,3").unwrap(), vec![0, 3, 6, 12]);
-        for bad in ["", "x", "6-0/3", "0-6/0", "0-6", "-1", "0-99999/1"] {
+        for bad in [
+            "",
+            "x",
+            "6-0/3",
+            "0-6/0",
+            "0-6",
+            "-1",
+            "0-99999/1",
+            "0-4000000000/1",
+        ] {
             assert!(parse_steps(bad).is_err(), "{bad}");
         }
     }
