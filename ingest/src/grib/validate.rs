@@ -150,7 +150,8 @@ pub(super) fn validate_for_decode(
         }
         let group_width_bits = s5.u8(37)? as u64;
         let group_len_bits = s5.u8(47)? as u64;
-        if group_width_bits > 32 || group_len_bits > 32 {
+        // A constant field (no groups; NCEP sends such) leaves the descriptor octets unset.
+        if groups > 0 && (group_width_bits > 32 || group_len_bits > 32) {
             return Err(corrupt(
                 "complex packing group descriptors wider than 32 bits".into(),
             ));
