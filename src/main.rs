@@ -1,4 +1,4 @@
-//! The `stratus` command line: inspect, ingest, render, score, fly.
+//! The `stratus` command line: fetch, inspect, ingest, render, score, fly.
 
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
@@ -22,6 +22,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Download a GFS run's fields by byte range (NOMADS, AWS, Google or a mirror), one validated file per step.
+    Fetch(cmd::fetch::Args),
     /// List the messages of a GRIB file, one row each (headers only, no decoding).
     Inspect(cmd::inspect::Args),
     /// GRIB2 relative humidity → CloudMap PNG + JSON sidecar.
@@ -80,6 +82,7 @@ fn main() -> ExitCode {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
     let result = match cli.command {
+        Command::Fetch(a) => cmd::fetch::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Ingest(a) => cmd::ingest::run(a),
         Command::Probe(a) => cmd::probe::run(a),

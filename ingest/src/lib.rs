@@ -12,10 +12,14 @@
 //! Files: [`input`] reads every input with a cap; [`output`] writes atomically, never over
 //! what is not a regular file or is an input, commits a map's PNG and sidecar as a pair, and
 //! accounts for its temporary files.
+//!
+//! [`fetch`] downloads the messages a GFS run's steps need by byte range, from the run's `.idx`
+//! inventory, and validates each before writing a step's file.
 
 pub mod cloudmap;
 pub mod encode;
 pub mod error;
+pub mod fetch;
 pub mod forecast;
 pub mod geotiff;
 pub mod grib;

@@ -13,6 +13,7 @@ macro_rules! out {
 
 pub mod bench;
 pub mod demo;
+pub mod fetch;
 pub mod files;
 pub mod flight;
 pub mod fly;

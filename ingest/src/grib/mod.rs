@@ -24,6 +24,7 @@ pub use scan::scan;
 pub use tables::{
     BitmapIndicator, Discipline, GridTemplate, Packing, ProductionStatus, SurfaceType, TimeUnit,
 };
+pub use validate::validate_message;
 
 /// Largest grid accepted (points). A 0.1° global grid is 6.5 M; this leaves room for finer ones
 /// while refusing headers that would make a multi-gigabyte allocation.

@@ -150,7 +150,8 @@ pub(super) fn validate_for_decode(
         }
         let group_width_bits = s5.u8(37)? as u64;
         let group_len_bits = s5.u8(47)? as u64;
-        if group_width_bits > 32 || group_len_bits > 32 {
+        // A constant field (no groups; NCEP sends such) leaves the descriptor octets unset.
+        if groups > 0 && (group_width_bits > 32 || group_len_bits > 32) {
             return Err(corrupt(
                 "complex packing group descriptors wider than 32 bits".into(),
             ));
@@ -176,4 +177,40 @@ fn trailing_ones(bitmap: &[u8], n: u64) -> u64 {
         }
     }
     c
+}
+
+/// Validate one whole GRIB2 message standing alone (`msg` is exactly its bytes, as a byte-range
+/// download delivers it): it must scan as exactly one message filling `msg`, and every field in
+/// it must pass the checks a field passes before it is decoded. Returns its fields.
+pub fn validate_message(msg: &[u8]) -> Result<Vec<MessageInfo>, GribError> {
+    if msg.len() < 16 || &msg[..4] != b"GRIB" {
+        return Err(GribError::Corrupt {
+            index: 0,
+            offset: 0,
+            msg: "the bytes do not start with a 'GRIB' marker".into(),
+        });
+    }
+    let fields = super::scan(msg)?;
+    if let Some(f) = fields.iter().find(|f| f.index != 0) {
+        return Err(GribError::Corrupt {
+            index: f.index,
+            offset: f.offset,
+            msg: "more than one message where one was expected".into(),
+        });
+    }
+    if let Some(f) = fields.first().filter(|f| f.length != msg.len()) {
+        return Err(GribError::Corrupt {
+            index: 0,
+            offset: 0,
+            msg: format!(
+                "the message declares {} bytes but {} arrived",
+                f.length,
+                msg.len()
+            ),
+        });
+    }
+    for f in &fields {
+        validate_for_decode(msg, f)?;
+    }
+    Ok(fields)
 }
