@@ -54,7 +54,7 @@ impl Interp {
         }
     }
 
-    /// Weights on (y0, y1, s0, s1) at fraction `t` ∈ [0, 1] of an interval.
+    /// Weights on (y0, y1, s0, s1) at fraction `t` ∈ \[0, 1\] of an interval.
     pub fn weights(self, t: f64) -> [f64; 4] {
         match self {
             Interp::Spline | Interp::CatmullRom => {
@@ -99,7 +99,7 @@ impl FromStr for Interp {
 
 /// Slopes of the not-a-knot cubic spline through `y` at unit spacing.
 ///
-/// Interior rows: s[i-1] + 4 s[i] + s[i+1] = 3 (m[i-1] + m[i]) with m the secant slopes; the
+/// Interior rows: `s[i-1] + 4 s[i] + s[i+1] = 3 (m[i-1] + m[i])` with m the secant slopes; the
 /// end rows come from equal third derivatives across the first and last interior nodes:
 /// s0 + 2 s1 = (5 m0 + m1)/2 and 2 s[n-2] + s[n-1] = (m[n-3] + 5 m[n-2])/2. Tridiagonal, solved
 /// by elimination without pivoting (the pivots stay ≥ 0.4 for every n).

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The GPU figures for docs/performance.md, on a machine with a GPU (the device machine some
+# sessions are lent). Usage, from the repository root, with a release binary built elsewhere:
+#   bash scripts/gpu-bench.sh [path/to/stratus]     (default: target/release/stratus)
+# Writes everything under $OUT (or ./gpu-bench-out): the adapter, `stratus bench` as a table and
+# as JSON, and full-HD / 4K frame timings at every preset on the real GFS sample (timestamps are
+# trusted on GPUs, so these are GPU times, not wall times).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+S=${1:-target/release/stratus}
+OUT=${OUT:-gpu-bench-out}
+mkdir -p "$OUT"
+G=../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
+[ -e "$G" ] || G=data-samples/gfs-2011011012-f120-2p5.grib2
+
+"$S" ingest "$G" --region 0,55,39,105 --size 1300x1100 --out "$OUT/ea.png" | tee "$OUT/ingest.txt"
+"$S" bench | tee "$OUT/bench.md"
+"$S" bench --json > "$OUT/bench.json"
+for size in 1920x1080 3840x2160; do
+  for preset in fast balanced high; do
+    echo "== $size $preset" | tee -a "$OUT/frames.txt"
+    "$S" render --map "$OUT/ea.json" --camera 30,75,12000 --heading 60 --pitch -10 \
+      --size "$size" --preset "$preset" --timings --repeat 5 --out "$OUT/ea-$size-$preset.png" \
+      2>&1 | tee -a "$OUT/frames.txt"
+  done
+done
+"$S" score --map "$OUT/ea.json" --json > "$OUT/score.json"
+echo "done: $OUT"
