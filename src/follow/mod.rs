@@ -389,6 +389,11 @@ impl Follower {
         }
     }
 
+    /// Ground speed (m/s) the last two packets imply (0 when unknown or a teleport).
+    pub fn speed(&self) -> f64 {
+        self.velocity.0
+    }
+
     /// The last fix as received, without extrapolation.
     pub fn last_fix(&self) -> Option<Fix> {
         self.last.map(|(f, _)| f)
