@@ -5,6 +5,7 @@
 pub mod app;
 pub mod bench;
 pub mod flight;
+pub mod follow;
 pub mod picture;
 pub mod render;
 pub mod scenes;

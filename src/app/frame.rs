@@ -1,14 +1,18 @@
-//! One window frame, step by step: move the pilot, build the panel and HUD, act on what the
+//! One window frame, step by step: move the pilot (or put it where the followed simulator's
+//! aircraft is), build the panel and HUD, act on what the
 //! user asked, record the clouds and egui into the surface, submit, then take whatever frame
 //! statistics the GPU has finished (never waiting for them) and save a screenshot if asked.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::anyhow;
 use chrono::Utc;
 
 use super::panel::{self, Actions, Hud};
+use super::pilot;
 use super::{App, Running};
+use crate::follow::Status;
 use crate::render::readback::Pending;
 use crate::render::{Settings, View};
 
@@ -27,10 +31,15 @@ impl App {
             return Ok(());
         };
         let dt = r.clock.tick();
-        if !r.controls.paused && frames_wanted.is_none() {
+        let following = self
+            .opts
+            .follow
+            .as_mut()
+            .map(|f| pilot::follow(&mut r.pilot, f, Instant::now()));
+        if !r.controls.paused && frames_wanted.is_none() && following.is_none() {
             r.pilot.step(&r.input.keys, dt);
         }
-        let ui = r.build_ui();
+        let ui = r.build_ui(following.as_ref().map(Status::line));
         r.act(&ui.actions, &mut self.opts);
         let (tw, th) = (r.screen.config.width, r.screen.config.height);
         if tw == 0 || th == 0 {
@@ -76,7 +85,7 @@ impl App {
 
 impl Running {
     /// The panel and HUD for this frame, and the settings and march size they give.
-    fn build_ui(&mut self) -> UiFrame {
+    fn build_ui(&mut self, follow: Option<String>) -> UiFrame {
         let settings = self.controls.settings(self.valid_time, self.clock.frames);
         let (tw, th) = (self.screen.config.width, self.screen.config.height);
         let scale = self.controls.render_scale.clamp(0.05, 1.0);
@@ -97,6 +106,7 @@ impl Running {
             frame_ms: self.clock.frame_ms,
             adapter: self.renderer.gpu.info.name.clone(),
             march_size: march,
+            follow,
         };
         let input = self.ui.state.take_egui_input(&self.screen.window);
         let mut actions = Actions::default();

@@ -49,6 +49,8 @@ pub struct FlyOptions {
     pub screenshot: Option<PathBuf>,
     /// Re-ingest a dropped GRIB2 file over the current region.
     pub ingest_dropped: IngestDropped,
+    /// `--follow`: the camera takes a simulator's pose instead of the keyboard pilot's.
+    pub follow: Option<crate::follow::Follower>,
 }
 
 /// The window's surface and how it is configured.

@@ -51,6 +51,8 @@ pub struct Hud {
     pub frame_ms: f64,
     pub adapter: String,
     pub march_size: (u32, u32),
+    /// `--follow`'s status line.
+    pub follow: Option<String>,
 }
 
 impl Controls {
@@ -127,6 +129,9 @@ pub fn hud(ui: &mut egui::Ui, h: &Hud) {
         .fixed_pos(egui::pos2(10.0, 10.0))
         .show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {
+                if let Some(f) = &h.follow {
+                    ui.monospace(f);
+                }
                 ui.monospace(format!("LAT {:>9.4}°  LON {:>9.4}°", h.lat, h.lon));
                 ui.monospace(format!("ALT {:>7.0} m    HDG {:>5.1}°", h.alt_m, h.heading));
                 ui.monospace(format!(

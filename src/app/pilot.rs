@@ -5,6 +5,9 @@ use std::collections::HashSet;
 
 use winit::keyboard::KeyCode;
 
+use std::time::Instant;
+
+use crate::follow::{Follower, Status};
 use crate::render::camera::EARTH_R;
 use crate::render::Camera;
 
@@ -107,9 +110,67 @@ impl Pilot {
     }
 }
 
+/// One frame of `--follow`: read what the simulator sent and put the pilot at the aircraft's
+/// pose (the mouse-look offsets stay: the view still turns from the nose). Before the first
+/// packet the pilot stays where it is.
+pub fn follow(pilot: &mut Pilot, follower: &mut Follower, now: Instant) -> Status {
+    follower.poll(now);
+    if let Some(fix) = follower.pose(now) {
+        pilot.lat = fix.lat;
+        pilot.lon = fix.lon;
+        pilot.alt_m = fix.alt_m.max(0.0);
+        pilot.heading = fix.heading;
+        pilot.pitch = fix.pitch;
+        pilot.roll = fix.roll;
+        pilot.speed = follower.speed();
+    }
+    follower.status(now)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::follow::{flightgear, Fix, Kind, Source};
+
+    #[test]
+    fn follow_takes_the_aircraft_pose_and_keeps_the_look() {
+        let mut f = Follower::bind(Source {
+            kind: Kind::FlightGear,
+            port: 0,
+        })
+        .unwrap();
+        let mut p = Pilot::at(0.0, 0.0, 5000.0, 0.0, 0.0);
+        p.look_yaw = 30.0;
+        let st = follow(&mut p, &mut f, Instant::now());
+        assert!(st.line().ends_with("waiting for packets"), "{}", st.line());
+        assert_eq!((p.lat, p.alt_m), (0.0, 5000.0), "no packet: stays put");
+        let fix = Fix::checked(45.5, -22.0, 12_000.0, 45.0, -12.0, 20.0).unwrap();
+        let s = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.send_to(&flightgear::encode(&fix), ("127.0.0.1", f.port()))
+            .unwrap();
+        s.send_to(b"garbage", ("127.0.0.1", f.port())).unwrap();
+        let until = Instant::now() + std::time::Duration::from_secs(2);
+        let mut st = follow(&mut p, &mut f, Instant::now());
+        while st.received + st.malformed < 2 && Instant::now() < until {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            st = follow(&mut p, &mut f, Instant::now());
+        }
+        assert_eq!((st.received, st.malformed), (1, 1));
+        assert!((p.lat - 45.5).abs() < 1e-9 && (p.alt_m - 12_000.0).abs() < 0.01);
+        assert_eq!(
+            (p.heading, p.pitch, p.roll, p.look_yaw),
+            (45.0, -12.0, 20.0, 30.0)
+        );
+        let cam = p.camera();
+        let want = Camera::new(p.lat, p.lon, p.alt_m, 75.0, -12.0);
+        assert!((cam.forward_enu - want.forward_enu).length() < 1e-12);
+        assert_eq!(cam.roll_deg, 20.0);
+        assert!(
+            st.line().starts_with("following FlightGear on :"),
+            "{}",
+            st.line()
+        );
+    }
 
     #[test]
     fn flies_north_and_turns_when_banked() {

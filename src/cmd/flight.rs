@@ -1,4 +1,6 @@
-//! `stratus flight`: a keyframed path rendered headless to a PNG sequence (and MP4 with ffmpeg).
+//! `stratus flight`: a keyframed path rendered headless to a PNG sequence (and MP4 with ffmpeg),
+//! or with `--follow` a simulator's session: a frame every 1/fps s of wall time from the
+//! follower's pose for `--duration` s.
 //!
 //! What the output folder holds afterwards (docs/files.md):
 //! - Before anything is rendered, the frame count and the disk it needs are checked against
@@ -12,19 +14,22 @@
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
 use stratus_ingest::output::{check_output, STALE_TEMP_AGE};
 use stratus_ingest::region::parse_size;
 
 use stratus::flight::{FlightPath, DEFAULT_MAX_FRAMES};
+use stratus::follow::{Fix, Follower, Source};
 use stratus::picture::save_png;
-use stratus::render::{Renderer, Settings, View};
+use stratus::render::{Camera, Renderer, Settings, View};
 
 use super::files::{check_out, map_files};
-use super::options::{progress_bar, LookOpts};
+use super::options::{parse_camera, progress_bar, LookOpts};
 use crate::cleanup::{self, Removal};
 
 #[derive(clap::Args, Debug)]
@@ -33,14 +38,26 @@ pub struct Args {
     #[arg(long)]
     pub map: PathBuf,
     /// Keyframed path (JSON; see docs/fly.md).
-    #[arg(long)]
-    pub path: PathBuf,
+    #[arg(long, required_unless_present = "follow", conflicts_with = "follow")]
+    pub path: Option<PathBuf>,
+    /// Record a simulator's session instead: xplane[:PORT] (49003) or flightgear[:PORT] (5505).
+    #[arg(long, requires = "duration")]
+    pub follow: Option<String>,
+    /// Seconds of wall time to record with --follow.
+    #[arg(long, requires = "follow")]
+    pub duration: Option<f64>,
+    /// Seconds --follow waits for the simulator's first packet.
+    #[arg(long, default_value_t = 10.0, requires = "follow")]
+    pub wait: f64,
+    /// Vertical field of view with --follow, degrees.
+    #[arg(long, default_value_t = 60.0, requires = "follow")]
+    pub fov: f64,
     /// Output directory for frame-NNNNN.png (and flight.mp4 when ffmpeg is present).
     #[arg(long)]
     pub out: PathBuf,
     #[arg(long, default_value = "640x360")]
     pub size: String,
-    /// Frames per second of path time.
+    /// Frames per second of path time (with --follow: of wall time).
     #[arg(long, default_value_t = 10.0)]
     pub fps: f64,
     /// Refuse a path that makes more frames than this (checked before anything is rendered).
@@ -83,19 +100,33 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--fps {} must be in (0, 240]", a.fps);
     }
     let (w, h) = parse_size(&a.size)?;
-    let path = FlightPath::load(&a.path)?;
-    let n = path
-        .frames(a.fps, a.max_frames)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", shown(&a.path)))?;
     let mut inputs = map_files(&a.map);
-    inputs.push(a.path.clone());
+    let (mut source, n) = match (&a.path, &a.follow) {
+        (Some(file), _) => {
+            let path = FlightPath::load(file)?;
+            let n = path
+                .frames(a.fps, a.max_frames)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", shown(file)))?;
+            inputs.push(file.clone());
+            (Cameras::Path(path), n)
+        }
+        (None, Some(follow)) => {
+            let n = follow_frames(a.duration.unwrap_or(0.0), a.fps, a.max_frames)?;
+            (Cameras::Follow(follow_setup(&a, follow)?), n)
+        }
+        (None, None) => anyhow::bail!("--path or --follow is required"),
+    };
     check_folder(&a.out, &inputs, n)?;
     check_space(&a.out, n, w, h)?;
     let map = CloudMap::load(&a.map)?;
     let settings = a.look.settings(&map, &a.map)?;
+    if let Cameras::Follow(f) = &mut source {
+        // Before anything is created: a simulator that never speaks leaves no trace.
+        f.wait_first(a.wait)?;
+    }
 
     let created = create_folder(&a.out)?;
-    let result = render_and_commit(&a, &path, n, (w, h), &map, &settings);
+    let result = render_and_commit(&a, &mut source, n, (w, h), &map, &settings);
     if result.is_err() {
         // A folder this run created goes too (it is empty: the staging folder is gone).
         for d in created.iter().rev() {
@@ -115,6 +146,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         String::new()
     };
     out!("wrote {frames} to {}{earlier}", shown(&a.out))?;
+    if let Cameras::Follow(f) = &mut source {
+        let st = f.follower.status(Instant::now());
+        out!(
+            "{}: {} packets, {} malformed (ignored)",
+            st.kind.name(),
+            st.received,
+            st.malformed
+        )?;
+    }
     match mp4 {
         Mp4::Made => out!("{}", shown(&a.out.join(MP4)))?,
         Mp4::Failed => {
@@ -222,7 +262,7 @@ enum Mp4 {
 /// those were removed.
 fn render_and_commit(
     a: &Args,
-    path: &FlightPath,
+    source: &mut Cameras,
     n: u64,
     (w, h): (u32, u32),
     map: &CloudMap,
@@ -238,7 +278,7 @@ fn render_and_commit(
     let mut r = Renderer::new(a.look.gpu()?, map);
     let pb = progress_bar(n, "frames");
     for i in 0..n {
-        let (cam, time) = path.at(path.keys[0].t + i as f64 / a.fps);
+        let (cam, time) = source.at(i, a.fps);
         let mut s = settings.clone();
         if let Some(t) = time {
             s.time = t;
@@ -307,6 +347,110 @@ fn sweep_stale_staging(out: &Path, ours: &Path) {
         if stale {
             let _ = std::fs::remove_dir_all(&p);
         }
+    }
+}
+
+/// Where each frame's camera comes from.
+enum Cameras {
+    Path(FlightPath),
+    Follow(Following),
+}
+
+impl Cameras {
+    /// Frame `i`'s camera and (for a keyed path) time.
+    fn at(&mut self, i: u64, fps: f64) -> (Camera, Option<DateTime<Utc>>) {
+        match self {
+            Cameras::Path(p) => p.at(p.keys[0].t + i as f64 / fps),
+            Cameras::Follow(f) => (f.at(i, fps), None),
+        }
+    }
+}
+
+/// A simulator being recorded: the follower and the wall clock the frames keep to.
+struct Following {
+    follower: Follower,
+    fov: f64,
+    /// When frame 0 was taken; frame i is due i/fps s later.
+    start: Option<Instant>,
+}
+
+/// Longest --wait for the first packet: an hour.
+const MAX_WAIT_S: f64 = 3600.0;
+
+/// Frames a recording of `duration` s at `fps` makes (one every 1/fps s, the first at 0),
+/// refused above `max` before anything is bound or rendered.
+fn follow_frames(duration: f64, fps: f64, max: u64) -> anyhow::Result<u64> {
+    if !(duration.is_finite() && duration > 0.0) {
+        anyhow::bail!("--duration {duration} must be a positive number of seconds");
+    }
+    let frames = (duration * fps).ceil().max(1.0);
+    if frames > max as f64 {
+        anyhow::bail!(
+            "{duration} s at {fps} fps is {frames} frames, more than the limit of {max} (raise it with --max-frames)"
+        );
+    }
+    Ok(frames as u64)
+}
+
+fn follow_setup(a: &Args, follow: &str) -> anyhow::Result<Following> {
+    if !(a.wait.is_finite() && a.wait > 0.0 && a.wait <= MAX_WAIT_S) {
+        anyhow::bail!("--wait {} must be in (0, {MAX_WAIT_S}] seconds", a.wait);
+    }
+    // The same check the renderer makes, before a socket is bound.
+    parse_camera("0,0,1000", 0.0, 0.0, a.fov)?;
+    let source: Source = follow.parse()?;
+    Ok(Following {
+        follower: Follower::bind(source)?,
+        fov: a.fov,
+        start: None,
+    })
+}
+
+impl Following {
+    /// Wait up to `seconds` for the first good packet.
+    fn wait_first(&mut self, seconds: f64) -> anyhow::Result<()> {
+        let until = Instant::now() + Duration::from_secs_f64(seconds);
+        loop {
+            self.follower.poll(Instant::now());
+            if self.follower.last_fix().is_some() {
+                return Ok(());
+            }
+            if Instant::now() >= until {
+                let st = self.follower.status(Instant::now());
+                anyhow::bail!(
+                    "no packet from {} on UDP port {} in {seconds} s ({} malformed); is its output sent to this machine and port? Nothing was written",
+                    st.kind.name(),
+                    st.port,
+                    st.malformed
+                );
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    /// The camera for frame `i`: wait until it is due (a slow renderer makes it late, never
+    /// early), read what has arrived, and take the pose now.
+    fn at(&mut self, i: u64, fps: f64) -> Camera {
+        let start = *self.start.get_or_insert_with(Instant::now);
+        let due = start + Duration::from_secs_f64(i as f64 / fps);
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+        let now = Instant::now();
+        self.follower.poll(now);
+        // wait_first saw a packet, so there is a pose; the fallback is never used.
+        let fix = self.follower.pose(now).unwrap_or(Fix {
+            lat: 0.0,
+            lon: 0.0,
+            alt_m: 1000.0,
+            heading: 0.0,
+            pitch: 0.0,
+            roll: 0.0,
+        });
+        let mut cam = fix.camera();
+        cam.fov_deg = self.fov;
+        cam
     }
 }
 

@@ -7,6 +7,7 @@ use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
 use stratus::app::{fly, FlyOptions};
+use stratus::follow::{Follower, Source};
 use stratus::render::Preset;
 
 use super::files::{check_out, map_files};
@@ -30,6 +31,9 @@ pub struct Args {
     /// Render this many frames, then exit (with --screenshot: save the last one).
     #[arg(long)]
     pub frames: Option<u32>,
+    /// Follow a simulator's aircraft: xplane[:PORT] (UDP 49003) or flightgear[:PORT] (5505).
+    #[arg(long)]
+    pub follow: Option<String>,
     /// Where --frames saves its last frame (PNG).
     #[arg(long, requires = "frames")]
     pub screenshot: Option<PathBuf>,
@@ -52,6 +56,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         check_out(shot, &inputs)?;
     }
     let size = parse_size(&a.window)?;
+    // Bound before the window opens: a port in use is a one-line error, not a window.
+    let follow = match &a.follow {
+        Some(s) => Some(Follower::bind(s.parse::<Source>()?)?),
+        None => None,
+    };
     let (map, plan) = if is_json(&a.input) {
         (CloudMap::load(&a.input)?, None)
     } else {
@@ -75,6 +84,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         frames: a.frames,
         screenshot: a.screenshot,
         ingest_dropped,
+        follow,
     })?;
     Ok(ExitCode::SUCCESS)
 }
