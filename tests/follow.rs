@@ -3,9 +3,11 @@
 //! the pose is what was sent, garbage is counted and changes nothing, silence is reported, and
 //! `flight --follow` records the same frame `render` makes at that camera.
 
+mod common;
+use common::{stratus, synthetic_map};
+
 use std::net::UdpSocket;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
@@ -222,32 +224,6 @@ fn a_thousand_garbage_packets_change_nothing() {
     }
 }
 
-fn stratus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_stratus"))
-        .args(args)
-        .env("RUST_LOG", "error")
-        .output()
-        .expect("run stratus")
-}
-
-/// Ingest the synthetic sample into `dir`, returning the sidecar.
-fn sample_map(dir: &Path) -> PathBuf {
-    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/synthetic-gfs-rh.grib2");
-    let png = dir.join("m.png");
-    let o = stratus(&[
-        "ingest",
-        sample.to_str().unwrap(),
-        "--region",
-        "30,60,-40,0",
-        "--size",
-        "160x120",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("m.json")
-}
-
 /// A port nobody listens on now (the binary binds it next).
 fn free_port() -> u16 {
     UdpSocket::bind("127.0.0.1:0")
@@ -298,7 +274,7 @@ fn flight(map: &Path, follow: &str, out: &Path, extra: &[&str]) -> std::process:
 #[test]
 fn a_recording_matches_render_at_the_same_camera() {
     let dir = tempfile::tempdir().unwrap();
-    let map = sample_map(dir.path());
+    let map = synthetic_map(dir.path());
     for (kind, name) in [(Kind::XPlane, "xplane"), (Kind::FlightGear, "flightgear")] {
         let port = free_port();
         let stop = Arc::new(AtomicBool::new(false));
@@ -354,7 +330,7 @@ fn a_recording_matches_render_at_the_same_camera() {
 #[test]
 fn no_packet_is_one_error_and_no_folder() {
     let dir = tempfile::tempdir().unwrap();
-    let map = sample_map(dir.path());
+    let map = synthetic_map(dir.path());
     let port = free_port();
     // Only garbage: the follower must not take any of it for a pose.
     let s = sender();

@@ -1,34 +1,10 @@
 //! `stratus render` through the binary: a real frame, and every bad input a clear one-line
 //! error with exit code 2 and no output file.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+use common::{stratus, synthetic_map};
 
-fn stratus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_stratus"))
-        .args(args)
-        .env("RUST_LOG", "error")
-        .output()
-        .expect("run stratus")
-}
-
-/// Ingest the embedded sample into `dir`, returning the sidecar.
-fn sample_map(dir: &Path) -> PathBuf {
-    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/synthetic-gfs-rh.grib2");
-    let png = dir.join("m.png");
-    let o = stratus(&[
-        "ingest",
-        sample.to_str().unwrap(),
-        "--region",
-        "30,60,-40,0",
-        "--size",
-        "160x120",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("m.json")
-}
+use std::path::Path;
 
 fn render(map: &Path, camera: &str, out: &Path, extra: &[&str]) -> std::process::Output {
     let mut a = vec![
@@ -70,7 +46,7 @@ fn refused(o: &std::process::Output, needle: &str, out: &Path) {
 #[test]
 fn renders_a_frame_with_timings() {
     let dir = tempfile::tempdir().unwrap();
-    let map = sample_map(dir.path());
+    let map = synthetic_map(dir.path());
     let out = dir.path().join("f.png");
     let o = render(&map, "45.5,-22,12000", &out, &["--timings"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -88,7 +64,7 @@ fn renders_a_frame_with_timings() {
 fn bad_inputs_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let map = sample_map(d);
+    let map = synthetic_map(d);
     let out = d.join("f.png");
     // Missing sidecar.
     refused(

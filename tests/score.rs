@@ -1,8 +1,10 @@
 //! The Dice gate end to end on lavapipe with the real GFS sample, and proof that the score
 //! falls when the render is wrong.
 
+mod common;
+use common::stratus;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
 use stratus::score;
@@ -23,14 +25,6 @@ const GFS: &str = "data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2";
 /// layers, every preset. 0.93 leaves room for a different adapter's rounding at mask edges and is
 /// still far above the paper's 0.827; a wrong render scores below 0.75 (test below).
 const GATE: &str = "0.93";
-
-fn stratus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_stratus"))
-        .args(args)
-        .env("RUST_LOG", "error")
-        .output()
-        .expect("run stratus")
-}
 
 fn gate(extra: &[&str], preset: &str) {
     let g = shared(GFS);

@@ -1,0 +1,41 @@
+//! Helpers the end-to-end tests share: running the binary, finding the shared data, ingesting
+//! the synthetic sample. (Each test crate uses a part of it, hence the allow.)
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Run the `stratus` binary with `args`, logging only errors.
+pub fn stratus(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(args)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("run stratus")
+}
+
+/// A path under `../shared` (the real GFS files beside the checkout).
+pub fn shared(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared")
+        .join(rel)
+}
+
+/// Ingest the synthetic sample (30–60°N, 40°W–0°, 160×120, all layers) into `dir/m.png`,
+/// returning the sidecar.
+pub fn synthetic_map(dir: &Path) -> PathBuf {
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/synthetic-gfs-rh.grib2");
+    let png = dir.join("m.png");
+    let o = stratus(&[
+        "ingest",
+        sample.to_str().unwrap(),
+        "--region",
+        "30,60,-40,0",
+        "--size",
+        "160x120",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("m.json")
+}
