@@ -346,15 +346,13 @@ mod tests {
     fn resource_of(module: &naga::Module, var: &naga::GlobalVariable) -> Option<Resource> {
         let inner = &module.types[var.ty].inner;
         Some(match (var.space, inner) {
-            (naga::AddressSpace::Uniform, _) => Resource::Uniform(
-                module.types[var.ty].name.as_deref().map_or("?", |n| {
-                    shared_structs()
-                        .into_iter()
-                        .find(|s| s.0 == n)
-                        .map_or("?", |s| s.0)
-                }),
-                inner.size(module.to_ctx()) as u64,
-            ),
+            (naga::AddressSpace::Uniform, _) => {
+                // The shared struct of that name (its `&'static str`), "?" for any other.
+                let name = module.types[var.ty].name.as_deref();
+                let shared = shared_structs().into_iter().map(|s| s.0);
+                let known = shared.into_iter().find(|n| Some(*n) == name);
+                Resource::Uniform(known.unwrap_or("?"), inner.size(module.to_ctx()) as u64)
+            }
             (naga::AddressSpace::Storage { access }, _)
                 if access.contains(naga::StorageAccess::STORE) =>
             {

@@ -341,7 +341,6 @@ impl Renderer {
     /// (every rh_cr slider move); the render targets stay whatever the map.
     pub fn set_map(&mut self, map: &CloudMap) {
         if !self.weather.replace(&self.gpu, map) {
-            self.weather = weather::WeatherMap::upload(&self.gpu, map);
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
             self.made.map_textures += 1;
         }
@@ -514,21 +513,20 @@ impl Renderer {
         let start = Instant::now();
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         // The headless target lives with the cloud texture (same size).
-        let color = {
+        let (color, cloud_tex, cut_mask) = {
             let dev = self.gpu.device.clone();
             let t = self.targets(width, height);
             let size = (t.width, t.height);
-            t.color
-                .get_or_insert_with(|| {
-                    texture_2d(
-                        &dev,
-                        "frame",
-                        size,
-                        HEADLESS_FORMAT,
-                        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                    )
-                })
-                .clone()
+            let color = t.color.get_or_insert_with(|| {
+                texture_2d(
+                    &dev,
+                    "frame",
+                    size,
+                    HEADLESS_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                )
+            });
+            (color.clone(), t.cloud.clone(), t.cut_mask.clone())
         };
         let color_view = color.create_view(&Default::default());
         self.encode(
@@ -541,8 +539,6 @@ impl Renderer {
             HEADLESS_FORMAT,
             width,
         )?;
-        let cloud_tex = self.targets(width, height).cloud.clone();
-        let cut_mask = self.targets(width, height).cut_mask.clone();
         let gpu = &self.gpu;
         let rb_color = readback::Pending::texture(gpu, &mut enc, &color, 4);
         let rb_cloud = readback::Pending::texture(gpu, &mut enc, &cloud_tex, 8);

@@ -191,7 +191,10 @@ fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
 impl WeatherMap {
     /// Make the map's textures and upload it.
     pub fn upload(gpu: &Gpu, map: &CloudMap) -> WeatherMap {
-        let p = Prepared::new(gpu, map);
+        WeatherMap::with(gpu, Prepared::new(gpu, map))
+    }
+
+    fn with(gpu: &Gpu, p: Prepared) -> WeatherMap {
         let texture = map_texture(
             gpu,
             "weather map",
@@ -219,18 +222,19 @@ impl WeatherMap {
         m
     }
 
-    /// Upload another map into these textures when it has their size (an rh_cr change, a
-    /// new forecast over the same region): nothing is made again. False, and nothing changed,
-    /// when the sizes differ.
+    /// Upload another map: into these textures when it has their size (an rh_cr change, a
+    /// new forecast over the same region), so nothing is made again, else into new textures.
+    /// True when the textures were kept (a bind group over them stays valid).
     pub fn replace(&mut self, gpu: &Gpu, map: &CloudMap) -> bool {
         let p = Prepared::new(gpu, map);
-        if (p.w as u32, p.h as u32) != (self.width, self.height)
-            || (p.cw, p.ch) != (self.coarse_w, self.coarse_h)
-        {
-            return false;
+        let fits = (p.w as u32, p.h as u32) == (self.width, self.height)
+            && (p.cw, p.ch) == (self.coarse_w, self.coarse_h);
+        if fits {
+            self.store(gpu, p);
+        } else {
+            *self = WeatherMap::with(gpu, p);
         }
-        self.store(gpu, p);
-        true
+        fits
     }
 
     fn store(&mut self, gpu: &Gpu, p: Prepared) {
