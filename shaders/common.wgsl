@@ -18,7 +18,7 @@ struct Frame {
     cam_right: vec3<f32>,
     aspect: f32,                // width / height
     cam_view_up: vec3<f32>,
-    top_down: u32,              // 1: the score's orthographic nadir view, 0: a perspective camera
+    _pad0: u32,
     noise_origin: vec3<f32>,    // camera ECEF modulo the shape-noise period (m)
     shape_period_m: f32,
     sun_dir: vec3<f32>,         // toward the Sun (ECEF)
@@ -54,10 +54,10 @@ struct Frame {
     out_size: vec2<f32>,        // march output width, height (px)
     frame_index: f32,
     haze_cutoff_m: f32,         // beyond this the haze hides everything (5 visibility lengths)
-    top_down_alt_m: f32,        // altitude of the top-down view's rays
+    _pad1: f32,
     skip_m: f32,                // empty-skip step length (one coarse cell)
     march_scale: f32,           // march pixels per target pixel (the window may march smaller)
-    _pad0: f32,
+    _pad2: f32,
 };
 
 // Frame.flags bits.
@@ -65,7 +65,7 @@ const FLAG_SKIP: u32 = 1u;     // empty-space skipping over the coarse map
 const FLAG_CULL: u32 = 2u;     // no sampling outside the region / cloudless map
 const FLAG_DETAIL: u32 = 4u;   // detail noise
 const FLAG_JITTER: u32 = 8u;   // per-pixel jittered ray start
-const FLAG_NO_SKY: u32 = 16u;  // scoring: black background, sun overhead
+const FLAG_NO_SKY: u32 = 16u;  // the score's top-down view: nadir rays from cam_alt_m, black background, sun overhead
 const FLAG_LIGHT_LOD: u32 = 32u;// fewer light steps once the view ray is mostly opaque
 const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting cloud
 

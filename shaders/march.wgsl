@@ -41,8 +41,8 @@ fn weather_at(uv: vec2<f32>) -> Sample {
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
         let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
-        let on = select(vec3<f32>(0.0), vec3<f32>(1.0), f.layer_scale > vec3<f32>(0.0));
-        s.cm = clamp(w.rgb * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0)) * on;
+        // Layers that are off are never looked up (density_uv picks a drawn layer).
+        s.cm = clamp(w.rgb * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0));
     }
     return s;
 }
@@ -136,12 +136,12 @@ struct Ray {
 fn make_ray(px: vec2<f32>) -> Ray {
     var r: Ray;
     let size = f.out_size;
-    if (f.top_down != 0u) {
+    if (has_flag(f, FLAG_NO_SKY)) {
         // Top-down: one nadir ray per map pixel centre (DESIGN §1.2 pixel convention).
         let lat = radians(f.region_north - px.y / size.y * (f.region_north - f.region_south));
         let lon = radians(f.region_west + px.x / size.x * f.region_lon_span);
         r.up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
-        r.h = f.top_down_alt_m;
+        r.h = f.cam_alt_m;
         r.d = -r.up;
         let o = r.up * (EARTH_R + r.h);
         r.np = o - f.shape_period_m * floor(o / f.shape_period_m);

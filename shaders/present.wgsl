@@ -82,7 +82,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));
-    var c = textureLoad(cloud, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0);
+    var c: vec4<f32>;
     // Resolve the march's interleaved-gradient jitter, which spreads its values evenly over
     // every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and thin layers
     // otherwise show the jitter's lattice. Not for the score's top-down frames (a mask view,
@@ -106,6 +106,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             }
             c += wy[j] * row;
         }
+    } else {
+        c = textureLoad(cloud, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0);
     }
     var bg = vec3<f32>(0.0);
     if (!has_flag(f, FLAG_NO_SKY)) {

@@ -28,6 +28,10 @@ pub const FORMAT_V1: &str = "stratus-cloudmap/1";
 /// holds (up to 0.4 hPa, about 50 km) fits; a band at 10¹² m or ±10³⁰⁸ m does not.
 pub const ALTITUDE_RANGE_M: std::ops::RangeInclusive<f64> = -500.0..=100_000.0;
 
+/// The ISCCP layer boundaries by pressure (hPa): low p > 680, middle 680 ≥ p ≥ 440, high p < 440.
+pub const LOW_TOP_HPA: f64 = 680.0;
+pub const MIDDLE_TOP_HPA: f64 = 440.0;
+
 /// Cloud layer (ISCCP convention by pressure of the level).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "lowercase")]
@@ -45,9 +49,9 @@ impl LayerKind {
 
     /// The layer an isobaric level belongs to.
     pub fn of_pressure_hpa(p: f64) -> LayerKind {
-        if p > 680.0 {
+        if p > LOW_TOP_HPA {
             LayerKind::Low
-        } else if p >= 440.0 {
+        } else if p >= MIDDLE_TOP_HPA {
             LayerKind::Middle
         } else {
             LayerKind::High

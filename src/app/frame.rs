@@ -86,26 +86,21 @@ impl App {
 impl Running {
     /// The panel and HUD for this frame, and the settings and march size they give.
     fn build_ui(&mut self, follow: Option<String>) -> UiFrame {
-        let settings = self.controls.settings(self.valid_time, self.clock.frames);
-        let (tw, th) = (self.screen.config.width, self.screen.config.height);
-        let scale = self.controls.render_scale.clamp(0.05, 1.0);
-        let march = (
-            ((tw as f32 * scale) as u32).max(1),
-            ((th as f32 * scale) as u32).max(1),
-        );
-        self.march_size = march;
+        // The HUD shows what the last frame drew; the settings and march size are taken after
+        // the panel, so a slider moved now is drawn this frame.
+        let shown = self.controls.settings(self.valid_time, self.clock.frames);
         let hud = Hud {
             lat: self.pilot.lat,
             lon: self.pilot.lon,
             alt_m: self.pilot.alt_m,
             heading: self.pilot.heading,
             speed: self.pilot.speed,
-            utc: settings.time,
+            utc: shown.time,
             fps: self.clock.fps(),
             gpu_ms: self.clock.gpu_ms,
             frame_ms: self.clock.frame_ms,
             adapter: self.renderer.gpu.info.name.clone(),
-            march_size: march,
+            march_size: self.march_size,
             follow,
         };
         let input = self.ui.state.take_egui_input(&self.screen.window);
@@ -115,6 +110,14 @@ impl Running {
             actions = panel::panel(ui, controls);
             panel::hud(ui, &hud);
         });
+        let settings = self.controls.settings(self.valid_time, self.clock.frames);
+        let (tw, th) = (self.screen.config.width, self.screen.config.height);
+        let scale = self.controls.render_scale.clamp(0.05, 1.0);
+        let march = (
+            ((tw as f32 * scale) as u32).max(1),
+            ((th as f32 * scale) as u32).max(1),
+        );
+        self.march_size = march;
         UiFrame {
             settings,
             march,

@@ -205,14 +205,15 @@ impl IngestOpts {
 
     /// Validate the options, read the file and prepare the resampling.
     pub fn plan(&self, file: &Path) -> anyhow::Result<Plan> {
-        let opts = self.options()?;
-        let fc = Forecast::open(file, self.select())?;
-        Ok(Plan::new(&fc, &opts)?)
+        self.plan_with(file, self.options()?)
     }
 
     /// Like [`IngestOpts::plan`] over a given region and size.
     pub fn plan_over(&self, file: &Path, region: Region, size: (u32, u32)) -> anyhow::Result<Plan> {
-        let opts = self.options_over(region, size)?;
+        self.plan_with(file, self.options_over(region, size)?)
+    }
+
+    fn plan_with(&self, file: &Path, opts: IngestOptions) -> anyhow::Result<Plan> {
         let fc = Forecast::open(file, self.select())?;
         Ok(Plan::new(&fc, &opts)?)
     }

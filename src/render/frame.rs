@@ -32,8 +32,7 @@ crate::gpu_struct! {
         /// Width / height.
         pub aspect: f32,
         pub cam_view_up: [f32; 3],
-        /// 1 for the score's orthographic nadir view, 0 for a perspective camera.
-        pub top_down: u32,
+        pub _pad0: u32,
         /// The camera's ECEF position modulo the shape-noise period.
         pub noise_origin: [f32; 3],
         pub shape_period_m: f32,
@@ -84,13 +83,12 @@ crate::gpu_struct! {
         pub frame_index: f32,
         /// Beyond this distance the haze hides everything (five visibility lengths).
         pub haze_cutoff_m: f32,
-        /// Altitude the top-down view's rays start from.
-        pub top_down_alt_m: f32,
+        pub _pad1: f32,
         /// Empty-space skip length (one coarse cell).
         pub skip_m: f32,
         /// March pixels per target pixel (the window may march at a fraction of its size).
         pub march_scale: f32,
-        pub _pad0: f32,
+        pub _pad2: f32,
     }
 }
 
@@ -104,7 +102,7 @@ pub mod flags {
     pub const DETAIL: u32 = 4;
     /// Per-pixel jittered ray start.
     pub const JITTER: u32 = 8;
-    /// Scoring: black background, Sun overhead.
+    /// The score's top-down view: nadir rays from `cam_alt_m`, black background, Sun overhead.
     pub const NO_SKY: u32 = 16;
     /// Fewer light steps once the view ray is mostly opaque.
     pub const LIGHT_LOD: u32 = 32;
@@ -245,7 +243,6 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         }
         View::TopDown => {
             u.flags |= flags::NO_SKY;
-            u.top_down = 1;
             let (lat, lon) = r.centre();
             let up = crate::sun::up_at(lat, lon);
             u.cam_up = v3(up);
@@ -273,7 +270,6 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.region_north = r.north as f32;
     u.region_west = r.west as f32;
     u.region_lon_span = r.lon_span() as f32;
-    u.top_down_alt_m = hi + 1000.0;
     u.skip_m = inp.weather.skip_m;
     u.density_mul = s.density_mul;
     u.extinction = s.extinction;

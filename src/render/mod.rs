@@ -284,8 +284,6 @@ pub struct Made {
     pub targets: u32,
     /// Map texture pairs (weather + coarse) and their bind group.
     pub map_textures: u32,
-    /// Maps uploaded, into new or existing textures.
-    pub map_uploads: u32,
 }
 
 /// The renderer for one CloudMap on one GPU. Resources are held by lifetime: the device's
@@ -330,7 +328,6 @@ impl Renderer {
             stats,
             made: Made {
                 map_textures: 1,
-                map_uploads: 1,
                 targets: 0,
             },
             gpu,
@@ -344,7 +341,6 @@ impl Renderer {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
             self.made.map_textures += 1;
         }
-        self.made.map_uploads += 1;
         self.meta = map.meta.clone();
     }
 

@@ -175,7 +175,6 @@ impl Fetcher {
     pub fn fetch(&self, plan: &StepPlan, progress: &dyn Progress) -> Result<u64, FetchError> {
         crate::output::check_output(&plan.out)?;
         let data = self.download(plan, progress)?;
-        let mut file = Vec::new();
         for (chunk, bytes) in plan.chunks.iter().zip(&data) {
             if let Err(e) = self.check_chunk(plan, chunk, bytes) {
                 // What is in the cache may be what is wrong: the next run asks again.
@@ -183,17 +182,17 @@ impl Fetcher {
                 return Err(e);
             }
         }
-        for bytes in &data {
-            file.extend_from_slice(bytes);
-        }
+        // Chunk by chunk into the file: no second copy of the step in memory.
         crate::output::write_atomic(&plan.out, |w| {
             use std::io::Write;
-            w.write_all(&file).map_err(|e| e.to_string())
+            data.iter()
+                .try_for_each(|bytes| w.write_all(bytes))
+                .map_err(|e| e.to_string())
         })?;
         for c in &plan.chunks {
             self.cache.remove(&plan.cache_key, c.range);
         }
-        Ok(file.len() as u64)
+        Ok(data.iter().map(|b| b.len() as u64).sum())
     }
 
     /// Every chunk's bytes, in plan order: from the cache where a whole one is there, else

@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::meta::LayerKind;
+use crate::meta::{LayerKind, LOW_TOP_HPA, MIDDLE_TOP_HPA};
 
 /// A WMO cloud genus, or none. The code is 1 + the genus' figure in WMO code table 0500
 /// (Ci 0 … Cb 9), so 0 stays "no cloud / unknown"; the renderer indexes its lookup table
@@ -148,7 +148,7 @@ impl ColumnFacts {
                 (Convection::Deep, (f64::INFINITY, 0.0))
             }
             (Some(c), Some(li)) if c >= SHALLOW_CAPE && li < 0.0 => {
-                (Convection::Shallow, (f64::INFINITY, 680.0))
+                (Convection::Shallow, (f64::INFINITY, LOW_TOP_HPA))
             }
             _ => (Convection::None, (0.0, 0.0)),
         }
@@ -158,9 +158,9 @@ impl ColumnFacts {
 /// Pressure range (bottom, top) of a layer, hPa (ISCCP: low > 680, middle 680–440, high < 440).
 pub fn layer_span_hpa(kind: LayerKind) -> (f64, f64) {
     match kind {
-        LayerKind::Low => (f64::INFINITY, 680.0),
-        LayerKind::Middle => (680.0, 440.0),
-        LayerKind::High => (440.0, 0.0),
+        LayerKind::Low => (f64::INFINITY, LOW_TOP_HPA),
+        LayerKind::Middle => (LOW_TOP_HPA, MIDDLE_TOP_HPA),
+        LayerKind::High => (MIDDLE_TOP_HPA, 0.0),
     }
 }
 
