@@ -54,10 +54,12 @@ struct Frame {
     out_size: vec2<f32>,        // march output width, height (px)
     frame_index: f32,
     haze_cutoff_m: f32,         // beyond this the haze hides everything (5 visibility lengths)
-    _pad1: f32,
+    tower_base_m: f32,          // the cumulonimbus towers' envelope (m); base > top when none
     skip_m: f32,                // empty-skip step length (one coarse cell)
     march_scale: f32,           // march pixels per target pixel (the window may march smaller)
-    _pad2: f32,
+    tower_top_m: f32,
+    st_scale: vec2<f32>,        // map uv → structure-texture uv: uv * st_scale + st_offset
+    st_offset: vec2<f32>,
 };
 
 // Frame.flags bits.
@@ -68,6 +70,9 @@ const FLAG_JITTER: u32 = 8u;   // per-pixel jittered ray start
 const FLAG_NO_SKY: u32 = 16u;  // the score's top-down view: nadir rays from cam_alt_m, black background, sun overhead
 const FLAG_LIGHT_LOD: u32 = 32u;// fewer light steps once the view ray is mostly opaque
 const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting cloud
+const FLAG_STRUCTURE: u32 = 128u; // per-pixel base, top and genus (columns, not bands)
+const FLAG_TOWERS: u32 = 256u;  // the map holds cumulonimbus towers
+const FLAG_STREAKS: u32 = 512u; // the map holds cirrus-like genera, streaked along the wind
 
 fn has_flag(f: Frame, bit: u32) -> bool {
     return (f.flags & bit) != 0u;

@@ -8,10 +8,27 @@
 @group(0) @binding(3) var clamp_lin: sampler;
 @group(0) @binding(4) var repeat_lin: sampler;
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, N_COUNTERS>;
+@group(0) @binding(6) var profiles: texture_2d<f32>;     // per genus row: (P, D) by height fraction
 @group(1) @binding(0) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
 @group(1) @binding(1) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
+// The map's structure (render::structure): R/G/B low/middle/high, A the convective cloud.
+@group(1) @binding(2) var st_base: texture_2d<f32>;      // cloud base, m
+@group(1) @binding(3) var st_top: texture_2d<f32>;       // cloud top, m
+@group(1) @binding(4) var st_kind: texture_2d<f32>;      // genus code, nearest texel
+@group(1) @binding(5) var st_wind: texture_2d<f32>;      // (u, v) high in RG, middle in BA, m/s
 @group(2) @binding(0) var out_cloud: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(1) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
+
+// Genus codes (stratus_ingest::weather::CloudType) and the profile table's rows.
+const T_CIRRUS: f32 = 1.0;
+const T_CIRROSTRATUS: f32 = 3.0;
+const T_CUMULONIMBUS: f32 = 10.0;
+const PROFILE_ROWS: f32 = 11.0;
+const PROFILE_WIDTH: f32 = 64.0;
+// The column thickness a layer's density is normalised to (render::frame::REFERENCE_THICKNESS_M).
+const REFERENCE_THICKNESS_M: f32 = 2000.0;
+// Half-length of a cirrus streak along the wind (m).
+const STREAK_M: f32 = 2500.0;
 
 // Work counters: indices into `counters`, the fields of render::march::Counters in order.
 const C_RAYS: u32 = 0u;
@@ -57,17 +74,24 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
     return textureLoad(coarse, c, 0).r <= 0.0;
 }
 
-// DESIGN §2, eqs 5–18, for one layer: coverage cm, height fraction ph, noise position np.
-fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
-    let gs = sat(remap(ph, 0.0, 0.07, 0.0, 1.0)) * sat(remap(ph, 0.2 * cm, cm, 1.0, 0.0));
-    let gd = ph * sat(remap(ph, 0.0, 0.15, 0.0, 1.0)) * sat(remap(ph, 0.9, 1.0, 1.0, 0.0)) * cm * 2.0;
-    if (gs <= 0.0 || gd <= 0.0) {
-        return 0.0;
-    }
+// The shape noise's low-frequency FBM at np, remapped by its Perlin-Worley channel (eqs 11–14).
+fn shape_noise(np: vec3<f32>) -> f32 {
     let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.shape_period_m, 0.0);
     let fbm = sn.g * 0.625 + sn.b * 0.25 + sn.a * 0.125;
-    let ns_tex = remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
-    let ns = sat(remap(ns_tex * gs, 1.0 - cm, 1.0, 0.0, 1.0));
+    return remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
+}
+
+// Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`),
+// eroded by detail noise at the edges, times the density profile gd (DESIGN §2 eqs 15–18).
+// `streak`: a half-length vector along the wind, or zero: the union of the noise shifted both
+// ways along it draws the streaks of cirrus (a union of shifted blobs is a streak; stretching
+// the coordinates instead would jump where the noise origin wraps by a period).
+fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool, streak: vec3<f32>) -> f32 {
+    var ns_tex = shape_noise(np);
+    if (any(streak != vec3<f32>(0.0))) {
+        ns_tex = max(ns_tex, max(shape_noise(np + streak), shape_noise(np - streak)));
+    }
+    let ns = sat(remap(ns_tex * ns_scale, lo, 1.0, 0.0, 1.0));
     if (ns <= 0.0) {
         return 0.0;
     }
@@ -79,6 +103,113 @@ fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
         nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
     }
     return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;
+}
+
+// DESIGN §2, eqs 5–18, for one layer band: coverage cm, height fraction ph, noise position np.
+fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
+    let gs = sat(remap(ph, 0.0, 0.07, 0.0, 1.0)) * sat(remap(ph, 0.2 * cm, cm, 1.0, 0.0));
+    let gd = ph * sat(remap(ph, 0.0, 0.15, 0.0, 1.0)) * sat(remap(ph, 0.9, 1.0, 1.0, 0.0)) * cm * 2.0;
+    if (gs <= 0.0 || gd <= 0.0) {
+        return 0.0;
+    }
+    return carve(np, gs, 1.0 - cm, gd, cm, ph, detail, vec3<f32>(0.0));
+}
+
+// DESIGN §7, one column of a genus: the threshold 1 − cm·P(h) from the genus' profile row, so
+// the base is solid and flat and only the noise's peaks reach the top.
+fn genus_density(np: vec3<f32>, cm: f32, ph: f32, code: f32, detail: bool, streak: vec3<f32>) -> f32 {
+    let x = (ph * (PROFILE_WIDTH - 1.0) + 0.5) / PROFILE_WIDTH;
+    let pd = textureSampleLevel(profiles, clamp_lin, vec2<f32>(x, (code + 0.5) / PROFILE_ROWS), 0.0);
+    let gd = pd.g * cm * 2.0;
+    if (pd.r <= 0.0 || gd <= 0.0) {
+        return 0.0;
+    }
+    // The threshold sees coverage^γ (render::profile::Shape::gamma): opacity follows coverage.
+    return carve(np, 1.0, 1.0 - pow(cm, pd.b) * pd.r, gd, cm, ph, detail, streak);
+}
+
+// A cheap hash of a 200 m cell of noise space, in 0..1.
+fn cell_hash(np: vec3<f32>) -> f32 {
+    let c = vec3<u32>(vec3<i32>(floor(np / 200.0)));
+    var x = c.x * 73856093u ^ c.y * 19349663u ^ c.z * 83492791u;
+    x = (x ^ (x >> 16u)) * 0x45d9f3bu;
+    x = x ^ (x >> 16u);
+    return f32(x & 0xffffu) / 65535.0;
+}
+
+// Unit vector toward the wind (u east, v north) at map uv, or zero in calm air.
+fn wind_dir(uv: vec2<f32>, w: vec2<f32>) -> vec3<f32> {
+    if (dot(w, w) < 1.0) {
+        return vec3<f32>(0.0);
+    }
+    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
+    let lon = radians(f.region_west + uv.x * f.region_lon_span);
+    let east = vec3<f32>(-sin(lon), cos(lon), 0.0);
+    let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
+    return normalize(w.x * east + w.y * north);
+}
+
+// Density at altitude h in the column at map uv, from the column's own base, top and genus
+// (render::structure). A cumulonimbus column draws one tower through the convective cloud in
+// place of the layers it spans; elsewhere the layer whose column holds h (the densest one where
+// two overlap) is the only one evaluated.
+fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample) -> f32 {
+    let su = uv * f.st_scale + f.st_offset;
+    let b = textureSampleLevel(st_base, clamp_lin, su, 0.0);
+    let t = textureSampleLevel(st_top, clamp_lin, su, 0.0);
+    // The genus of the nearest texel, the choice dithered over a texel by a hash of the noise
+    // cell, so a boundary between genera blends instead of stepping along texel edges.
+    let dims = vec2<i32>(textureDimensions(st_kind));
+    let kc = clamp(vec2<i32>(floor(su * vec2<f32>(dims) + (cell_hash(np) - 0.5))), vec2<i32>(0), dims - 1);
+    let kind = textureLoad(st_kind, kc, 0);
+    let towers = has_flag(f, FLAG_TOWERS);
+    var k = -1;
+    var best = 0.0;
+    var tower_cm = 0.0;
+    for (var j = 0; j < 3; j++) {
+        if (f.layer_scale[j] > 0.0) {
+            if (towers && kind[j] == T_CUMULONIMBUS) {
+                tower_cm = max(tower_cm, s.cm[j]);
+            } else if (h >= b[j] && h <= t[j] && s.cm[j] > best) {
+                k = j;
+                best = s.cm[j];
+            }
+        }
+    }
+    var base = 0.0;
+    var top = 0.0;
+    var cm = 0.0;
+    var code = 0.0;
+    if (tower_cm > 0.0 && h >= b.a && h <= t.a) {
+        base = b.a;
+        top = t.a;
+        cm = tower_cm;
+        code = T_CUMULONIMBUS;
+    } else if (k >= 0) {
+        base = b[k];
+        top = t[k];
+        cm = best;
+        code = kind[k];
+    } else {
+        return 0.0;
+    }
+    local_count[C_DENSITY] += 1u;
+    let thick = max(top - base, 1.0);
+    let ph = (h - base) / thick;
+    // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
+    let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
+    if (code < 0.5) {
+        return layer_density(np, cm, ph, detail) * scale;
+    }
+    var streak = vec3<f32>(0.0);
+    if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
+        // Streaks along the layer's wind, sheared downwind with height (fall streaks trail).
+        let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
+        let dir = wind_dir(uv, select(w.zw, w.xy, k == 2));
+        streak = dir * STREAK_M;
+        return genus_density(np + dir * (ph * STREAK_M), cm, ph, code, detail, streak) * scale;
+    }
+    return genus_density(np, cm, ph, code, detail, streak) * scale;
 }
 
 // Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.
@@ -107,6 +238,18 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
             return 0.0;
         }
         local_count[C_OUTSIDE] += 1u;
+    }
+    if (has_flag(f, FLAG_STRUCTURE)) {
+        // Outside every layer's envelope and the towers' there is nothing to look up.
+        let in_tower = h >= f.tower_base_m && h <= f.tower_top_m;
+        var in_layer = false;
+        for (var j = 0; j < 3; j++) {
+            in_layer = in_layer || (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j] && s.cm[j] > 0.0);
+        }
+        if (!in_tower && !in_layer) {
+            return 0.0;
+        }
+        return column_density(uv, h, np, detail, s);
     }
     // The drawn bands are disjoint (frame.rs makes them so): one layer at most holds h, and only
     // its density is evaluated. A SIMD CPU driver (lavapipe) executes both sides of every branch,
@@ -242,6 +385,8 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     var mult = 1.0;
     var fine_left = 0u;
     var finished = false;
+    // Whether the last sample was clear: a cloud met after clear air has its edge refined.
+    var prev_clear = true;
     // Two nested loops: the inner one walks to the next sample with cloud, looking up density
     // only; the outer one lights that sample. On a GPU this is the same march as one loop. On a
     // SIMD CPU driver, where every branch is executed under a mask, it keeps the light march
@@ -292,10 +437,32 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
                 continue;
             }
             if (sigma > 0.0) {
+                if (prev_clear && t - dt > seg.x) {
+                    // Entering cloud from clear air: bisect the step for the edge. A dense
+                    // cloud is opaque within one step, so its colour is that of the sample;
+                    // at a fixed step that sample's depth inside the edge (and so its light)
+                    // would follow the step's phase, drawing contour rings over the relief.
+                    var lo_t = t - dt;
+                    for (var i = 0; i < 4; i++) {
+                        let mid = 0.5 * (lo_t + t);
+                        let uv_m = sample_uv(origin + r.d * mid);
+                        let s_m = density_uv(uv_m, altitude_at(r.h, mu, mid), r.np + r.d * mid, detail) * f.extinction;
+                        if (s_m > 0.0) {
+                            t = mid;
+                            sigma = s_m;
+                            uv = uv_m;
+                        } else {
+                            lo_t = mid;
+                        }
+                    }
+                    h = altitude_at(r.h, mu, t);
+                }
+                prev_clear = false;
                 fine_left = FINE_AFTER_CLOUD;
                 found = true;
                 break;
             }
+            prev_clear = true;
             if (fine_left > 0u) {
                 fine_left -= 1u;
             } else if (may_stride) {

@@ -89,6 +89,7 @@ pub enum Shared {
 
 /// Every constant the WGSL side must declare with this value wherever it declares it.
 pub fn shared_constants() -> Vec<(&'static str, Shared)> {
+    use stratus_ingest::weather::CloudType;
     use Shared::*;
     let mut v = vec![
         ("EARTH_R", F32(super::camera::EARTH_R as f32)),
@@ -100,6 +101,18 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("FLAG_NO_SKY", U32(flags::NO_SKY)),
         ("FLAG_LIGHT_LOD", U32(flags::LIGHT_LOD)),
         ("FLAG_STRIDE", U32(flags::STRIDE)),
+        ("FLAG_STRUCTURE", U32(flags::STRUCTURE)),
+        ("FLAG_TOWERS", U32(flags::TOWERS)),
+        ("FLAG_STREAKS", U32(flags::STREAKS)),
+        (
+            "REFERENCE_THICKNESS_M",
+            F32(super::frame::REFERENCE_THICKNESS_M),
+        ),
+        ("PROFILE_ROWS", F32(super::profile::LUT_ROWS as f32)),
+        ("PROFILE_WIDTH", F32(super::profile::LUT_WIDTH as f32)),
+        ("T_CIRRUS", F32(CloudType::Cirrus.code() as f32)),
+        ("T_CIRROSTRATUS", F32(CloudType::Cirrostratus.code() as f32)),
+        ("T_CUMULONIMBUS", F32(CloudType::Cumulonimbus.code() as f32)),
         (
             "N_COUNTERS",
             U32((std::mem::size_of::<Counters>() / 4) as u32),

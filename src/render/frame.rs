@@ -83,12 +83,16 @@ crate::gpu_struct! {
         pub frame_index: f32,
         /// Beyond this distance the haze hides everything (five visibility lengths).
         pub haze_cutoff_m: f32,
-        pub _pad1: f32,
+        /// Base of the cumulonimbus towers' envelope (m); above `tower_top_m` when none.
+        pub tower_base_m: f32,
         /// Empty-space skip length (one coarse cell).
         pub skip_m: f32,
         /// March pixels per target pixel (the window may march at a fraction of its size).
         pub march_scale: f32,
-        pub _pad2: f32,
+        pub tower_top_m: f32,
+        /// Map uv → structure-texture uv: `uv * st_scale + st_offset`.
+        pub st_scale: [f32; 2],
+        pub st_offset: [f32; 2],
     }
 }
 
@@ -108,6 +112,12 @@ pub mod flags {
     pub const LIGHT_LOD: u32 = 32;
     /// Longer steps in clear air, back up on meeting cloud.
     pub const STRIDE: u32 = 64;
+    /// The map has per-pixel base, top and type: columns and genus profiles, not bands.
+    pub const STRUCTURE: u32 = 128;
+    /// The map holds cumulonimbus: towers through the convective cloud.
+    pub const TOWERS: u32 = 256;
+    /// The map holds cirrus-like genera: noise streaked along the wind.
+    pub const STREAKS: u32 = 512;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -202,14 +212,44 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
 
     let mut u = FrameUniforms::default();
     let (mut lo, mut hi) = (f32::MAX, f32::MIN);
-    let bands = disjoint_bands(&inp.weather.bands, s.layers_on);
-    for (k, band) in bands.iter().enumerate() {
-        if let Some((base, top)) = *band {
-            u.layer_base[k] = base;
-            u.layer_top[k] = top;
-            u.layer_scale[k] = thickness_scale(top - base);
+    let st = &inp.weather.structure.info;
+    u.flags = march_flags(&p);
+    (u.tower_base_m, u.tower_top_m) = (1.0e6, 0.0);
+    if st.present {
+        // Each column has its own base and top: a layer's bounds are its envelope over the
+        // region, and the density scale for its thickness is the column's (march.wgsl).
+        u.flags |= flags::STRUCTURE;
+        for k in (0..3).filter(|&k| s.layers_on[k]) {
+            if let Some((base, top)) = st.envelopes[k] {
+                u.layer_base[k] = base;
+                u.layer_top[k] = top;
+                u.layer_scale[k] = 1.0;
+                lo = lo.min(base);
+                hi = hi.max(top);
+            }
+        }
+        // Towers and streaks only where the map has them and a layer that holds them is drawn.
+        if let Some((base, top)) = st.towers.filter(|_| u.layer_scale.iter().any(|&v| v > 0.0)) {
+            u.flags |= flags::TOWERS;
+            (u.tower_base_m, u.tower_top_m) = (base, top);
             lo = lo.min(base);
             hi = hi.max(top);
+        }
+        if st.streaks && (s.layers_on[1] || s.layers_on[2]) {
+            u.flags |= flags::STREAKS;
+        }
+        u.st_scale = st.uv_scale;
+        u.st_offset = st.uv_offset;
+    } else {
+        let bands = disjoint_bands(&inp.weather.bands, s.layers_on);
+        for (k, band) in bands.iter().enumerate() {
+            if let Some((base, top)) = *band {
+                u.layer_base[k] = base;
+                u.layer_top[k] = top;
+                u.layer_scale[k] = thickness_scale(top - base);
+                lo = lo.min(base);
+                hi = hi.max(top);
+            }
         }
     }
     if lo > hi {
@@ -219,7 +259,6 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.shell_base_m = lo;
     u.shell_top_m = hi;
     u.coverage_mul = s.coverage_mul;
-    u.flags = march_flags(&p);
 
     let exposure_base;
     match inp.view {

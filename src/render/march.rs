@@ -43,9 +43,16 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_DEVICE, 3, Resource::Sampler),
     b(GROUP_DEVICE, 4, Resource::Sampler),
     b(GROUP_DEVICE, 5, Resource::StorageRw),
+    // The genus profiles (render::profile).
+    b(GROUP_DEVICE, 6, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 0, Resource::Texture2d { filterable: true }),
     // The coarse map is R32Float: loaded, never filtered.
     b(GROUP_MAP, 1, Resource::Texture2d { filterable: false }),
+    // The structure (render::structure): base, top, genus (loaded), wind.
+    b(GROUP_MAP, 2, Resource::Texture2d { filterable: true }),
+    b(GROUP_MAP, 3, Resource::Texture2d { filterable: true }),
+    b(GROUP_MAP, 4, Resource::Texture2d { filterable: false }),
+    b(GROUP_MAP, 5, Resource::Texture2d { filterable: true }),
     b(GROUP_TARGET, 0, Resource::StorageTexture(CLOUD_FORMAT, 2)),
     b(GROUP_TARGET, 1, Resource::StorageRw),
 ];
@@ -134,6 +141,7 @@ impl MarchPass {
             noise.shape.create_view(&Default::default()),
             noise.detail.create_view(&Default::default()),
         );
+        let profiles = super::profile::texture(gpu).create_view(&Default::default());
         use wgpu::BindingResource as R;
         let device_bind = bind(
             dev,
@@ -146,6 +154,7 @@ impl MarchPass {
                 R::Sampler(&clamp_lin),
                 R::Sampler(&repeat_lin),
                 R::Buffer(counters.as_entire_buffer_binding()),
+                R::TextureView(&profiles),
             ],
         );
         MarchPass {
@@ -161,13 +170,19 @@ impl MarchPass {
     pub fn bind_map(&self, gpu: &Gpu, weather: &WeatherMap) -> wgpu::BindGroup {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (w, c) = (view(&weather.texture), view(&weather.coarse));
+        let st = weather.structure.textures.each_ref().map(view);
+        use wgpu::BindingResource as R;
         bind(
             &gpu.device,
             "march: map",
             &self.layouts[1],
             [
-                wgpu::BindingResource::TextureView(&w),
-                wgpu::BindingResource::TextureView(&c),
+                R::TextureView(&w),
+                R::TextureView(&c),
+                R::TextureView(&st[0]),
+                R::TextureView(&st[1]),
+                R::TextureView(&st[2]),
+                R::TextureView(&st[3]),
             ],
         )
     }

@@ -14,9 +14,11 @@ pub mod march;
 pub mod noise;
 pub mod present;
 pub mod preset;
+pub mod profile;
 pub mod readback;
 pub mod shader;
 pub mod stats;
+pub mod structure;
 pub mod weather;
 
 use std::time::Instant;

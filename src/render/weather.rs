@@ -7,6 +7,7 @@ use stratus_ingest::cloudmap::CloudMap;
 
 use super::camera::EARTH_R;
 use super::gpu::Gpu;
+use super::structure::{self, StructureTextures};
 
 /// Map pixels per coarse cell side.
 pub const COARSE_CELL: usize = 8;
@@ -31,6 +32,8 @@ pub struct WeatherMap {
     pub coarse_cells: Vec<f32>,
     pub coarse_w: usize,
     pub coarse_h: usize,
+    /// Per-pixel base, top, type and wind (a 1×1 stand-in for maps without them).
+    pub structure: StructureTextures,
 }
 
 /// Box-average `texels` (w×h, RGBA in 0..1) by an integer factor.
@@ -102,6 +105,7 @@ struct Prepared {
     ch: usize,
     skip_m: f32,
     bands: [Option<Band>; 3],
+    structure: structure::Prepared,
 }
 
 impl Prepared {
@@ -139,7 +143,9 @@ impl Prepared {
                 top_m: l.top_m as f32,
             });
         }
+        let structure = structure::Prepared::new(map, max as u32);
         Prepared {
+            structure,
             halfs,
             w,
             h,
@@ -217,6 +223,7 @@ impl WeatherMap {
             coarse_cells: Vec::new(),
             coarse_w: p.cw,
             coarse_h: p.ch,
+            structure: StructureTextures::new(gpu, &p.structure),
         };
         m.store(gpu, p);
         m
@@ -228,7 +235,8 @@ impl WeatherMap {
     pub fn replace(&mut self, gpu: &Gpu, map: &CloudMap) -> bool {
         let p = Prepared::new(gpu, map);
         let fits = (p.w as u32, p.h as u32) == (self.width, self.height)
-            && (p.cw, p.ch) == (self.coarse_w, self.coarse_h);
+            && (p.cw, p.ch) == (self.coarse_w, self.coarse_h)
+            && self.structure.fits(&p.structure);
         if fits {
             self.store(gpu, p);
         } else {
@@ -243,6 +251,7 @@ impl WeatherMap {
         self.skip_m = p.skip_m;
         self.bands = p.bands;
         self.coarse_cells = p.cells;
+        self.structure.store(gpu, &p.structure);
     }
 }
 

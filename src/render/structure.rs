@@ -1,0 +1,297 @@
+//! The map's vertical structure on the GPU (issue 13, DESIGN §7): per pixel and layer the
+//! cloud base and top, the cloud type and the wind the march shapes each column with, on the
+//! structure images' own lattice, plus what the frame needs to know before it marches: each
+//! layer's envelope (the march bounds), the convective towers' envelope, and which genera the
+//! region holds, so a genus that is absent costs nothing.
+//!
+//! Textures (all Rgba16Float, row 0 north, texel centres on the sidecar's `structure_grid`):
+//! - base, top: m above sea level, R/G/B = low/middle/high layer, A = the convective cloud.
+//!   Where the file gives no value the layer's band (A: the low layer's) fills in, so bilinear
+//!   filtering never blends an altitude with "none".
+//! - kind: R/G/B = the layer's [`CloudType`] code (0..=10), read with the nearest texel.
+//! - wind: u, v (m/s, east, north) of the high layer in R/G, of the middle in B/A: the layers
+//!   whose genera (cirrus) the march streaks along the wind.
+//!
+//! A map without structure (sidecar versions 1 and 2, synthetic maps) gets 1×1 textures and
+//! `present = false`: the march then draws the layer bands with the paper's profile, as before.
+
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::meta::StructureGrid;
+use stratus_ingest::region::Region;
+use stratus_ingest::structure::{sample_to_altitude, sample_to_wind, MapStructure};
+use stratus_ingest::weather::CloudType;
+
+use super::gpu::Gpu;
+
+/// What the frame needs from the structure before the march.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StructureInfo {
+    /// Whether the map has structure images (else the rest is unused).
+    pub present: bool,
+    /// Per layer: lowest base and highest top over its cloudy pixels (m), `None` for a layer
+    /// the map lacks.
+    pub envelopes: [Option<(f32, f32)>; 3],
+    /// Lowest convective base and highest convective top over the columns of cumulonimbus.
+    pub towers: Option<(f32, f32)>,
+    /// Whether a streaked genus (cirrus, cirrocumulus, cirrostratus) is in the map.
+    pub streaks: bool,
+    /// Map uv → structure texture uv: `uv * scale + offset`.
+    pub uv_scale: [f32; 2],
+    pub uv_offset: [f32; 2],
+}
+
+/// The four textures' texels (f16) and what the frame needs, made on the CPU.
+pub struct Prepared {
+    pub width: u32,
+    pub height: u32,
+    /// base, top, kind, wind.
+    pub texels: [Vec<half::f16>; 4],
+    pub info: StructureInfo,
+}
+
+const CB: u8 = CloudType::Cumulonimbus.code();
+
+/// Thinnest column drawn (m): where RH crosses rh_cr between two close levels the column can
+/// be under 100 m, thinner than a fast march step, so it would flicker in and out with the step's
+/// phase. Such a column is widened about its middle (its density is normalised to its
+/// thickness, so its optical depth is kept).
+pub const MIN_COLUMN_M: f32 = 800.0;
+
+/// A column (base, top) at least [`MIN_COLUMN_M`] thick.
+fn widened((base, top): (f32, f32)) -> (f32, f32) {
+    let missing = MIN_COLUMN_M - (top - base);
+    if missing > 0.0 {
+        (base - 0.5 * missing, top + 0.5 * missing)
+    } else {
+        (base, top)
+    }
+}
+
+fn is_streaked(code: u8) -> bool {
+    matches!(
+        CloudType::from_code(code),
+        Some(CloudType::Cirrus | CloudType::Cirrocumulus | CloudType::Cirrostratus)
+    )
+}
+
+/// Map uv → texture uv of the lattice `g` over `region` (texel centres at whole pixels).
+fn uv_transform(region: &Region, g: &StructureGrid) -> ([f32; 2], [f32; 2]) {
+    let (w, h) = (g.width.max(1) as f64, g.height.max(1) as f64);
+    let lat_span = region.north - region.south;
+    let scale = [region.lon_span() / (g.dlon * w), lat_span / (g.dlat * h)];
+    let offset = [
+        ((region.west - g.west) / g.dlon + 0.5) / w,
+        ((g.north - region.north) / g.dlat + 0.5) / h,
+    ];
+    (scale.map(|v| v as f32), offset.map(|v| v as f32))
+}
+
+impl Prepared {
+    pub fn new(map: &CloudMap, max_side: u32) -> Prepared {
+        let bands = {
+            let mut b = [None; 3];
+            for l in &map.meta.layers {
+                b[l.kind.channel()] = Some((l.base_m as f32, l.top_m as f32));
+            }
+            b
+        };
+        let envelopes = {
+            let mut e = [None; 3];
+            for l in &map.meta.layers {
+                let (base, top) = match &l.structure {
+                    Some(s) => (s.base_min_m as f32, s.top_max_m as f32),
+                    None => (l.base_m as f32, l.top_m as f32),
+                };
+                // Room for the thinnest columns' widening.
+                e[l.kind.channel()] = Some((base - 0.5 * MIN_COLUMN_M, top + 0.5 * MIN_COLUMN_M));
+            }
+            e
+        };
+        let usable = map.structure.as_ref().filter(|s| {
+            let fits = s.grid.width <= max_side && s.grid.height <= max_side;
+            if !fits {
+                tracing::warn!(
+                    "structure images {}×{} exceed this adapter's {max_side}-texel limit: drawing the layer bands",
+                    s.grid.width,
+                    s.grid.height
+                );
+            }
+            s.is_whole() && fits
+        });
+        match usable {
+            Some(s) => Prepared::of(map, s, bands, envelopes),
+            None => Prepared::none(envelopes),
+        }
+    }
+
+    fn none(envelopes: [Option<(f32, f32)>; 3]) -> Prepared {
+        let zero = vec![half::f16::ZERO; 4];
+        Prepared {
+            width: 1,
+            height: 1,
+            texels: [zero.clone(), zero.clone(), zero.clone(), zero],
+            info: StructureInfo {
+                present: false,
+                envelopes,
+                towers: None,
+                streaks: false,
+                uv_scale: [1.0; 2],
+                uv_offset: [0.0; 2],
+            },
+        }
+    }
+
+    fn of(
+        map: &CloudMap,
+        s: &MapStructure,
+        bands: [Option<(f32, f32)>; 3],
+        envelopes: [Option<(f32, f32)>; 3],
+    ) -> Prepared {
+        let n = s.base.len();
+        let f = half::f16::from_f32;
+        let band = |c: usize| bands[c].unwrap_or((0.0, 0.0));
+        let (mut base, mut top) = (Vec::with_capacity(n * 4), Vec::with_capacity(n * 4));
+        let (mut kind, mut wind) = (Vec::with_capacity(n * 4), Vec::with_capacity(n * 4));
+        let mut towers: Option<(f32, f32)> = None;
+        let mut streaks = false;
+        for k in 0..n {
+            let alt = |v: u16, fill: f32| sample_to_altitude(v).map_or(fill, |m| m as f32);
+            let col: [(f32, f32); 3] = std::array::from_fn(|c| {
+                widened((alt(s.base[k][c], band(c).0), alt(s.top[k][c], band(c).1)))
+            });
+            let (b, t) = (col.map(|c| c.0), col.map(|c| c.1));
+            let conv = widened((alt(s.base[k][3], b[0]), alt(s.top[k][3], t[0])));
+            let codes = s.types[k];
+            // Only layers the map has: a code in an absent layer's channel is never drawn.
+            let has = |c: usize| bands[c].is_some();
+            if (0..3).any(|c| has(c) && codes[c] == CB) {
+                // The tower spans the convective cloud, and at least the Cb layers it replaces.
+                let (mut lo, mut hi) = conv;
+                for c in (0..3).filter(|&c| has(c) && codes[c] == CB) {
+                    lo = lo.min(b[c]);
+                    hi = hi.max(t[c]);
+                }
+                towers = Some(towers.map_or((lo, hi), |(a, z)| (a.min(lo), z.max(hi))));
+            }
+            streaks |= (0..3).any(|c| has(c) && is_streaked(codes[c]));
+            base.extend([b[0], b[1], b[2], conv.0].map(f));
+            top.extend([t[0], t[1], t[2], conv.1].map(f));
+            kind.extend([codes[0], codes[1], codes[2], 0].map(|c| f(c as f32)));
+            let w = |v: &[u16; 3], c: usize| sample_to_wind(v[c]) as f32;
+            wind.extend(
+                [
+                    w(&s.wind_u[k], 2),
+                    w(&s.wind_v[k], 2),
+                    w(&s.wind_u[k], 1),
+                    w(&s.wind_v[k], 1),
+                ]
+                .map(f),
+            );
+        }
+        // The towers' envelope widens the convective layers' own: the march bounds must hold it.
+        let (uv_scale, uv_offset) = uv_transform(&map.meta.region, &s.grid);
+        Prepared {
+            width: s.grid.width,
+            height: s.grid.height,
+            texels: [base, top, kind, wind],
+            info: StructureInfo {
+                present: true,
+                envelopes,
+                towers,
+                streaks,
+                uv_scale,
+                uv_offset,
+            },
+        }
+    }
+}
+
+/// The structure textures of one map.
+pub struct StructureTextures {
+    /// base, top, kind, wind.
+    pub textures: [wgpu::Texture; 4],
+    pub info: StructureInfo,
+}
+
+const LABELS: [&str; 4] = [
+    "structure: base",
+    "structure: top",
+    "structure: kind",
+    "structure: wind",
+];
+
+impl StructureTextures {
+    /// Textures of `p`'s size, not yet written ([`store`](Self::store) fills them).
+    pub fn new(gpu: &Gpu, p: &Prepared) -> StructureTextures {
+        let textures = LABELS.map(|label| {
+            gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: p.width,
+                    height: p.height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba16Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            })
+        });
+        StructureTextures {
+            textures,
+            info: p.info,
+        }
+    }
+
+    /// Whether `p` fits these textures (then [`store`](Self::store) can take it).
+    pub fn fits(&self, p: &Prepared) -> bool {
+        self.textures[0].width() == p.width && self.textures[0].height() == p.height
+    }
+
+    pub fn store(&mut self, gpu: &Gpu, p: &Prepared) {
+        for (tex, texels) in self.textures.iter().zip(&p.texels) {
+            gpu.queue.write_texture(
+                tex.as_image_copy(),
+                bytemuck::cast_slice(texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(p.width * 8),
+                    rows_per_image: Some(p.height),
+                },
+                tex.size(),
+            );
+        }
+        self.info = p.info;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thin_columns_are_widened_about_their_middle() {
+        assert_eq!(widened((7117.0, 7203.0)), (6760.0, 7560.0));
+        assert_eq!(widened((1000.0, 3000.0)), (1000.0, 3000.0));
+    }
+
+    #[test]
+    fn texel_centres_land_on_the_lattice() {
+        let r = Region::parse("0,55,39,105").unwrap();
+        let g =
+            stratus_ingest::structure::structure_grid((1300, 1100), &r, (90.0, 0.0), (2.5, 2.5));
+        let (s, o) = uv_transform(&r, &g);
+        // The region's north-west corner is at lattice (x, y) = ((39 − west)/dlon, 0).
+        let x = (s[0] * 0.0 + o[0]) * g.width as f32 - 0.5;
+        let y = (s[1] * 0.0 + o[1]) * g.height as f32 - 0.5;
+        assert!((x as f64 - (39.0 - g.west) / g.dlon).abs() < 1e-3, "{x}");
+        assert!(y.abs() < 1e-3, "{y}");
+        // The south-east corner: 105°E, 0°N, the last texel centres.
+        let x = (s[0] + o[0]) * g.width as f32 - 0.5;
+        let y = (s[1] + o[1]) * g.height as f32 - 0.5;
+        assert!((x - (g.width - 1) as f32).abs() < 1e-2, "{x}");
+        assert!((y - (g.height - 1) as f32).abs() < 1e-2, "{y}");
+    }
+}
