@@ -19,7 +19,10 @@ fn steps() -> Option<(PathBuf, PathBuf)> {
     if f0.is_file() && f6.is_file() {
         Some((f0, f6))
     } else {
-        eprintln!("skipped: {} not found (../shared/data/gfs-series)", f0.display());
+        eprintln!(
+            "skipped: {} not found (../shared/data/gfs-series)",
+            f0.display()
+        );
         None
     }
 }
@@ -104,7 +107,10 @@ fn the_real_steps_round_trip_as_a_series() {
     let o = ingest(&[&f6], &single.join("one.png"));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let one = CloudMap::load(&single.join("one.json")).unwrap();
-    assert_eq!(one.meta.format, "stratus-cloudmap/3", "one file, one step: a plain map");
+    assert_eq!(
+        one.meta.format, "stratus-cloudmap/3",
+        "one file, one step: a plain map"
+    );
     let step = CloudMap::load(&dir.path().join("na-f006.json")).unwrap();
     assert_eq!(step.texels, one.texels);
     assert_eq!(step.structure, one.structure);
@@ -169,7 +175,15 @@ fn verify_advection_prints_the_json_the_issue_names() {
         assert_ne!(l["advected"], l["persistence"]);
     }
     // A step the series does not have is named with the ones it has.
-    let o = stratus(&["verify-advection", "--map", s(&map), "--from", "0", "--to", "12"]);
+    let o = stratus(&[
+        "verify-advection",
+        "--map",
+        s(&map),
+        "--from",
+        "0",
+        "--to",
+        "12",
+    ]);
     assert_refused(&o, &map, "no step at +12 h; the series has +0 h, +6 h");
 }
 
@@ -205,15 +219,28 @@ fn files_that_are_not_one_series_are_refused_and_nothing_is_written() {
 fn a_series_whose_step_maps_are_missing_is_refused() {
     let Some((f0, f6)) = steps() else { return };
     let dir = tempfile::tempdir().unwrap();
-    assert!(ingest(&[&f0, &f6], &dir.path().join("na.png")).status.success());
+    assert!(ingest(&[&f0, &f6], &dir.path().join("na.png"))
+        .status
+        .success());
     let map = dir.path().join("na.json");
-    for (gone, what) in [("na-f006.wind-u.png", "missing"), ("na-f006.json", "cannot read")] {
+    for (gone, what) in [
+        ("na-f006.wind-u.png", "missing"),
+        ("na-f006.json", "cannot read"),
+    ] {
         std::fs::remove_file(dir.path().join(gone)).unwrap();
         let before = names_in(dir.path());
         let o = stratus(&["probe", "--map", s(&map), "--at", "50,-20"]);
         assert_refused(&o, &dir.path().join(gone), what);
         assert!(String::from_utf8_lossy(&o.stderr).contains(s(&map)));
-        let o = stratus(&["verify-advection", "--map", s(&map), "--from", "0", "--to", "6"]);
+        let o = stratus(&[
+            "verify-advection",
+            "--map",
+            s(&map),
+            "--from",
+            "0",
+            "--to",
+            "6",
+        ]);
         assert_refused(&o, &dir.path().join(gone), what);
         assert_eq!(names_in(dir.path()), before, "nothing written");
     }
