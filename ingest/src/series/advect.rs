@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use crate::cloudmap::{coverage_to_sample, CloudMap, COVERAGE_FULL};
 use crate::error::{IngestError, Result};
+use crate::meta::StructureGrid;
 use crate::region::Region;
 use crate::structure::{sample_to_wind, MapStructure};
 
@@ -67,30 +68,77 @@ pub fn sample_coverage(map: &CloudMap, c: usize, lat: f64, lon: f64) -> f64 {
     (top * (1.0 - ty) + bottom * ty) / COVERAGE_FULL
 }
 
+/// Layer winds on a structure lattice, decoded to m/s once (east, north; R/G/B = layer).
+struct WindLattice {
+    grid: StructureGrid,
+    region: Region,
+    u: Vec<[f32; 3]>,
+    v: Vec<[f32; 3]>,
+}
+
+impl WindLattice {
+    fn of(s: &MapStructure, region: Region) -> Option<WindLattice> {
+        let n = s.grid.width as usize * s.grid.height as usize;
+        if n == 0 || s.wind_u.len() < n || s.wind_v.len() < n {
+            return None;
+        }
+        let dec = |w: &[[u16; 3]]| -> Vec<[f32; 3]> {
+            w[..n]
+                .iter()
+                .map(|t| t.map(|x| sample_to_wind(x) as f32))
+                .collect()
+        };
+        Some(WindLattice {
+            grid: s.grid,
+            region,
+            u: dec(&s.wind_u),
+            v: dec(&s.wind_v),
+        })
+    }
+
+    /// (1 − w)·self + w·other, where both lie on one lattice.
+    fn mix(mut self, other: &WindLattice, w: f32) -> Option<WindLattice> {
+        if self.grid != other.grid {
+            return None;
+        }
+        for (a, b) in self
+            .u
+            .iter_mut()
+            .zip(&other.u)
+            .chain(self.v.iter_mut().zip(&other.v))
+        {
+            for c in 0..3 {
+                a[c] = (1.0 - w) * a[c] + w * b[c];
+            }
+        }
+        Some(self)
+    }
+
+    /// Layer `c`'s wind at a point, bilinear between lattice pixels (clamped to the outer ones).
+    fn at(&self, c: usize, lat: f64, lon: f64) -> (f64, f64) {
+        let (g, r) = (&self.grid, &self.region);
+        let (w, h) = (g.width as usize, g.height as usize);
+        // Keep a point west of the region on the west edge (the lattice reads longitudes east
+        // of the region's west edge).
+        let lon = near_lon(r, lon).clamp(r.west, r.west + r.lon_span());
+        let (x, y) = (g.x(r, lon), g.y(lat));
+        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+        let (i1, j1) = ((i0 + 1).min(w - 1), (j0 + 1).min(h - 1));
+        let (tx, ty) = (x - i0 as f64, y - j0 as f64);
+        let mix = |f: &[[f32; 3]]| {
+            let p = |k: usize| f[k][c] as f64;
+            let top = p(j0 * w + i0) * (1.0 - tx) + p(j0 * w + i1) * tx;
+            let bottom = p(j1 * w + i0) * (1.0 - tx) + p(j1 * w + i1) * tx;
+            top * (1.0 - ty) + bottom * ty
+        };
+        (mix(&self.u), mix(&self.v))
+    }
+}
+
 /// Layer `c`'s wind (m/s east, north) at a point of `s`, bilinear between structure pixels
 /// (clamped to the outer ones).
 pub fn sample_wind(s: &MapStructure, region: &Region, c: usize, lat: f64, lon: f64) -> (f64, f64) {
-    let g = &s.grid;
-    let (w, h) = (g.width as usize, g.height as usize);
-    if w == 0 || h == 0 || s.wind_u.len() < w * h || s.wind_v.len() < w * h {
-        return (0.0, 0.0);
-    }
-    // Keep a point west of the region on the west edge (the lattice reads longitudes east of
-    // the region's west edge).
-    let lon = near_lon(region, lon).clamp(region.west, region.west + region.lon_span());
-    let (x, y) = (g.x(region, lon), g.y(lat));
-    let (i0, j0) = (x.floor() as usize, y.floor() as usize);
-    let (i1, j1) = ((i0 + 1).min(w - 1), (j0 + 1).min(h - 1));
-    let (tx, ty) = (x - i0 as f64, y - j0 as f64);
-    let mix = |f: &dyn Fn(usize) -> f64| {
-        let top = f(j0 * w + i0) * (1.0 - tx) + f(j0 * w + i1) * tx;
-        let bottom = f(j1 * w + i0) * (1.0 - tx) + f(j1 * w + i1) * tx;
-        top * (1.0 - ty) + bottom * ty
-    };
-    (
-        mix(&|k| sample_to_wind(s.wind_u[k][c])),
-        mix(&|k| sample_to_wind(s.wind_v[k][c])),
-    )
+    WindLattice::of(s, *region).map_or((0.0, 0.0), |l| l.at(c, lat, lon))
 }
 
 /// The point reached from (`lat`, `lon`) after `seconds` (negative: backwards, the departure
@@ -144,11 +192,15 @@ fn map_pixels(like: &CloudMap, f: impl Fn(usize, f64, f64) -> f64 + Sync) -> Vec
     texels
 }
 
+fn lattice_of(map: &CloudMap) -> Option<WindLattice> {
+    let s = map.structure.as_ref().filter(|s| s.is_whole())?;
+    WindLattice::of(s, map.meta.region)
+}
+
 /// The winds of `map`'s layers as a function (zero where it has no structure images).
-fn winds_of(map: &CloudMap) -> Box<Wind<'_>> {
-    let region = map.meta.region;
-    match map.structure.as_ref().filter(|s| s.is_whole()) {
-        Some(s) => Box::new(move |c, lat, lon| sample_wind(s, &region, c, lat, lon)),
+fn winds_of(map: &CloudMap) -> Box<Wind<'static>> {
+    match lattice_of(map) {
+        Some(l) => Box::new(move |c, lat, lon| l.at(c, lat, lon)),
         None => Box::new(|_, _, _| (0.0, 0.0)),
     }
 }
@@ -210,11 +262,21 @@ pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<Clou
             "blend weight {w} is outside 0..=1"
         )));
     }
-    let (wa, wb) = (winds_of(a), winds_of(b));
-    let wind = |c: usize, lat: f64, lon: f64| {
-        let (ua, va) = wa(c, lat, lon);
-        let (ub, vb) = wb(c, lat, lon);
-        ((1.0 - w) * ua + w * ub, (1.0 - w) * va + w * vb)
+    // Steps of one series share a lattice: the time-interpolated wind is made once there.
+    let mixed = match (lattice_of(a), lattice_of(b)) {
+        (Some(la), Some(lb)) => la.mix(&lb, w as f32),
+        _ => None,
+    };
+    let wind: Box<Wind<'_>> = match mixed {
+        Some(l) => Box::new(move |c, lat, lon| l.at(c, lat, lon)),
+        None => {
+            let (wa, wb) = (winds_of(a), winds_of(b));
+            Box::new(move |c, lat, lon| {
+                let (ua, va) = wa(c, lat, lon);
+                let (ub, vb) = wb(c, lat, lon);
+                ((1.0 - w) * ua + w * ub, (1.0 - w) * va + w * vb)
+            })
+        }
     };
     let texels = map_pixels(a, |c, lat, lon| {
         let (la, lo) = trace(lat, lon, -w * interval_s, |p, q| wind(c, p, q));
