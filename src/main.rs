@@ -40,6 +40,8 @@ enum Command {
     Flight(cmd::flight::Args),
     /// Speed against accuracy: every preset and shortcut on fixed scenes vs the reference.
     Bench(cmd::bench::Args),
+    /// Carry a series' earlier step forward with its winds; Dice per layer against the later step, beside persistence.
+    VerifyAdvection(cmd::verify_advection::Args),
     /// The main job on the embedded sample: ingest, render a few views, print the Dice score.
     Demo(cmd::demo::Args),
 }
@@ -89,6 +91,7 @@ fn main() -> ExitCode {
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::VerifyAdvection(a) => cmd::verify_advection::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Flight(a) => cmd::flight::run(a),
         Command::Fly(a) => cmd::fly::run(a),

@@ -71,6 +71,10 @@ pub enum IngestError {
     Interrupted { path: PathBuf },
     #[error("{}: bad CloudMap: {msg}", shown(.path))]
     BadCloudMap { path: PathBuf, msg: String },
+    /// Inputs that do not make one forecast series, or a series sidecar that is not whole
+    /// ([`crate::series`]).
+    #[error("{}: {msg}", shown(.path))]
+    Series { path: PathBuf, msg: String },
 }
 
 /// `2 GiB`, `1 MiB`, `512 bytes`.
@@ -89,6 +93,12 @@ impl IngestError {
         IngestError::Io {
             path: path.to_path_buf(),
             err,
+        }
+    }
+    pub(crate) fn series(path: &Path, msg: impl fmt::Display) -> IngestError {
+        IngestError::Series {
+            path: path.to_path_buf(),
+            msg: msg.to_string(),
         }
     }
     pub(crate) fn write(path: &Path, msg: impl fmt::Display) -> IngestError {

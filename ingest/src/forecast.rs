@@ -72,11 +72,33 @@ impl Forecast {
     }
 
     pub fn from_bytes(path: &Path, bytes: &[u8], select: LevelSelect) -> Result<Forecast> {
+        Self::from_bytes_at(path, bytes, select, None)
+    }
+
+    /// Read `path` like [`Forecast::open`], keeping only the messages of forecast step `step`
+    /// (hours) when one is given: one step of a file that holds several.
+    pub fn open_step(path: &Path, select: LevelSelect, step: Option<f64>) -> Result<Forecast> {
+        let bytes = crate::input::read_grib(path)?;
+        Self::from_bytes_at(path, &bytes, select, step)
+    }
+
+    /// [`Forecast::from_bytes`] of one step (all messages when `step` is `None`).
+    pub fn from_bytes_at(
+        path: &Path,
+        bytes: &[u8],
+        select: LevelSelect,
+        step: Option<f64>,
+    ) -> Result<Forecast> {
         let gerr = |e: grib::GribError| IngestError::Grib {
             path: path.to_path_buf(),
             msg: e.to_string(),
         };
-        let msgs = grib::scan(bytes).map_err(gerr)?;
+        let mut msgs = grib::scan(bytes).map_err(gerr)?;
+        if let Some(h) = step {
+            // Fields of other steps (and accumulations whose step reads differently) are left
+            // out: the step's RH, gh, winds and instantaneous fields stay.
+            msgs.retain(|m| m.step_hours.is_some_and(|s| (s - h).abs() < 1e-6));
+        }
         let rh: Vec<&MessageInfo> = msgs
             .iter()
             .filter(|m| m.is_relative_humidity() && m.pressure_hpa().is_some())

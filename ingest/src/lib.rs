@@ -28,6 +28,7 @@ pub mod meta;
 pub mod output;
 pub mod pipeline;
 pub mod region;
+pub mod series;
 pub mod spline;
 pub mod structure;
 pub mod weather;

@@ -62,7 +62,10 @@ pub fn cleanup_temps() -> usize {
     SHUTTING_DOWN.store(true, Ordering::SeqCst);
     let _commit = lock(&COMMIT);
     let live = std::mem::take(&mut *lock(&LIVE));
-    live.iter().filter(|p| fs::remove_file(p).is_ok()).count()
+    // Staging folders ([`StagingDir`]) are registered too, hence the folder removal.
+    live.iter()
+        .filter(|p| fs::remove_file(p).is_ok() || fs::remove_dir_all(p).is_ok())
+        .count()
 }
 
 /// Paths of the temporary files that exist now (for tests and diagnostics).
@@ -489,6 +492,100 @@ fn keep_previous(png: &Path) -> Result<Option<PathBuf>> {
             })?;
     }
     Ok(Some(kept))
+}
+
+/// A private folder beside the outputs where several files are written completely before any
+/// is put in place ([`commit_staged`]): a forecast series' step maps and its sidecar. Named
+/// like a temporary (`.NAME.RANDOM.stratus-tmp`), registered while it exists, and removed with
+/// everything in it when dropped, so an error leaves nothing behind.
+pub struct StagingDir {
+    dir: Option<tempfile::TempDir>,
+}
+
+impl StagingDir {
+    /// A fresh folder beside `target` (a file the staged set will include).
+    pub fn create(target: &Path) -> Result<StagingDir> {
+        let name = target
+            .file_name()
+            .ok_or_else(|| IngestError::write(target, "it names no file"))?;
+        let mut prefix = OsString::from(".");
+        prefix.push(name);
+        prefix.push(".");
+        let dir = parent_dir(target);
+        sweep_stale(dir);
+        let mut live = lock(&LIVE);
+        if SHUTTING_DOWN.load(Ordering::SeqCst) {
+            return Err(IngestError::Interrupted {
+                path: target.to_path_buf(),
+            });
+        }
+        let tmp = tempfile::Builder::new()
+            .prefix(&prefix)
+            .suffix(TEMP_SUFFIX)
+            .rand_bytes(10)
+            .tempdir_in(dir)
+            .map_err(|e| {
+                IngestError::write(
+                    target,
+                    format!("cannot create a staging folder in {}: {e}", shown(dir)),
+                )
+            })?;
+        live.insert(tmp.path().to_path_buf());
+        Ok(StagingDir { dir: Some(tmp) })
+    }
+
+    pub fn path(&self) -> &Path {
+        self.dir.as_ref().map_or(Path::new("."), |d| d.path())
+    }
+}
+
+impl Drop for StagingDir {
+    fn drop(&mut self) {
+        if let Some(d) = self.dir.take() {
+            lock(&LIVE).remove(d.path());
+            // Dropping the TempDir removes the folder and what it holds.
+        }
+    }
+}
+
+/// Put staged files in place: each `(staged, target)` is renamed over its target in order,
+/// under the lock of `lock_on`'s pair (the set's last file, written last) and the commit
+/// lock. A target that is not absent or a regular file is refused before anything moves; if
+/// any rename fails, every file already moved is put back as it was (the previous files
+/// restored, new ones removed), so the previous set stays whole.
+pub fn commit_staged(files: &[(PathBuf, PathBuf)], lock_on: &Path) -> Result<()> {
+    let _pair = PairLock::acquire(lock_on)?;
+    let _g = commit_guard(lock_on)?;
+    for (_, target) in files {
+        check_output(target)?;
+    }
+    let mut done: Vec<Committed> = Vec::with_capacity(files.len());
+    for (staged, target) in files {
+        let kept = match keep_previous(target) {
+            Ok(k) => k,
+            Err(e) => {
+                roll_back(done);
+                return Err(e);
+            }
+        };
+        if let Err(e) = fs::rename(staged, target) {
+            if let Some(k) = &kept {
+                let _ = fs::remove_file(k);
+            }
+            let also = roll_back(done);
+            return Err(IngestError::write(target, format!("{e}{also}")));
+        }
+        done.push(Committed {
+            path: target.clone(),
+            kept,
+        });
+    }
+    for c in done {
+        if let Some(k) = c.kept {
+            let _ = fs::remove_file(k);
+        }
+    }
+    Ok(())
 }
 
 /// Exclusive lock on a map's pair, across processes (see [`write_pair`]).

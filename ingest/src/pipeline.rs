@@ -516,7 +516,7 @@ impl Stats {
     }
 }
 
-fn fill_stats(meta: &mut CloudMapMeta, texels: &[[u16; 4]]) {
+pub(crate) fn fill_stats(meta: &mut CloudMapMeta, texels: &[[u16; 4]]) {
     let mut s = Stats::default();
     s.add(texels);
     s.apply(meta);

@@ -5,7 +5,6 @@
 
 use std::path::{Path, PathBuf};
 
-use stratus_ingest::cloudmap::load_meta;
 use stratus_ingest::output::{check_output, ensure_not_input};
 
 /// Refuse `out` when it is not absent or a regular file, or is one of `inputs`.
@@ -16,12 +15,9 @@ pub fn check_out(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The files a CloudMap is read from: its sidecar and, when the sidecar can be read, its PNG.
-/// (A sidecar that cannot be read fails the command when the map is loaded.)
+/// The files a CloudMap (or a series) is read from: its sidecar and, as far as the sidecars
+/// can be read, its images. (A sidecar that cannot be read fails the command when the map is
+/// loaded.)
 pub fn map_files(sidecar: &Path) -> Vec<PathBuf> {
-    let mut files = vec![sidecar.to_path_buf()];
-    if let Ok(meta) = load_meta(sidecar) {
-        files.push(meta.image_path(sidecar));
-    }
-    files
+    stratus_ingest::series::map_files(sidecar)
 }

@@ -118,7 +118,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     check_folder(&a.out, &inputs, n)?;
     check_space(&a.out, n, w, h)?;
-    let map = CloudMap::load(&a.map)?;
+    let map = a.look.open_map(&a.map)?;
     let settings = a.look.settings(&map, &a.map)?;
     if let Cameras::Follow(f) = &mut source {
         // Before anything is created: a simulator that never speaks leaves no trace.

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
 use stratus::app::{fly, FlyOptions};
@@ -62,7 +61,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         None => None,
     };
     let (map, plan) = if is_json(&a.input) {
-        (CloudMap::load(&a.input)?, None)
+        (stratus_ingest::series::open_map(&a.input, None)?, None)
     } else {
         let plan = a.ingest.plan(&a.input)?;
         let pb = progress_bar(1, "ingest");

@@ -21,7 +21,9 @@ pub struct LookOpts {
     /// Quality preset: fast, balanced, high or reference.
     #[arg(long, default_value = "balanced")]
     pub preset: Preset,
-    /// UTC time for the Sun and Moon (ISO 8601, e.g. 2011-01-15T06:00:00Z); default: the map's valid time.
+    /// UTC time for the Sun and Moon (ISO 8601, e.g. 2011-01-15T06:00:00Z), and with a series
+    /// the weather's moment (blended between the two steps around it); default: the map's
+    /// valid time (a series' first step).
     #[arg(long)]
     pub time: Option<String>,
     /// Sun direction E,N,U in the camera's local frame, instead of the computed one.
@@ -62,6 +64,17 @@ pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
 }
 
 impl LookOpts {
+    /// `--time`, parsed: the scene's moment (the Sun's, and a series' weather).
+    pub fn moment(&self) -> anyhow::Result<Option<DateTime<Utc>>> {
+        self.time.as_deref().map(parse_time).transpose()
+    }
+
+    /// The map `--map` names at `--time`: a series' moment (its first step without a time) or
+    /// a plain CloudMap.
+    pub fn open_map(&self, path: &Path) -> anyhow::Result<CloudMap> {
+        Ok(stratus_ingest::series::open_map(path, self.moment()?)?)
+    }
+
     /// The settings for `map`, read from `source` (its sidecar, or the GRIB file it was
     /// ingested from in memory), which errors about the map name.
     pub fn settings(&self, map: &CloudMap, source: &Path) -> anyhow::Result<Settings> {
@@ -196,7 +209,7 @@ impl IngestOpts {
         })
     }
 
-    fn select(&self) -> LevelSelect {
+    pub fn select(&self) -> LevelSelect {
         match self.level {
             Some(p) => LevelSelect::One(p),
             None => LevelSelect::AllBelow(self.top_hpa),

@@ -4,16 +4,20 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
+use stratus_ingest::series::open_map;
 
-use super::options::parse_numbers;
+use super::options::{parse_numbers, parse_time};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// CloudMap sidecar (MAP.json).
+    /// CloudMap sidecar (MAP.json) or series sidecar.
     #[arg(long)]
     pub map: PathBuf,
+    /// With a series: the moment (ISO 8601 UTC), blended between the two steps around it;
+    /// default: the first step.
+    #[arg(long)]
+    pub time: Option<String>,
     /// The point, LAT,LON in degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub at: String,
@@ -25,7 +29,8 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let v = parse_numbers(&a.at, 2, "--at")?;
     let (lat, lon) = (v[0], v[1]);
-    let map = CloudMap::load(&a.map)?;
+    let time = a.time.as_deref().map(parse_time).transpose()?;
+    let map = open_map(&a.map, time)?;
     let r = map.meta.region;
     let Some(p) = map.probe(lat, lon) else {
         anyhow::bail!(

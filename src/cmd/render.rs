@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 use stratus::picture::save_png;
 use stratus::render::{Renderer, View};
-use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::region::parse_size;
 
 use super::files::{check_out, map_files};
@@ -13,7 +12,7 @@ use super::options::{parse_camera, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// CloudMap sidecar (MAP.json) written by `stratus ingest`.
+    /// CloudMap sidecar (MAP.json) or series sidecar written by `stratus ingest`.
     #[arg(long)]
     pub map: PathBuf,
     /// Camera position LAT,LON,ALT_M (degrees, degrees, metres above sea level).
@@ -49,7 +48,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     check_out(&a.out, &map_files(&a.map))?;
-    let map = CloudMap::load(&a.map)?;
+    let map = a.look.open_map(&a.map)?;
     let settings = a.look.settings(&map, &a.map)?;
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,

@@ -50,9 +50,10 @@ pub fn load_or_ingest(
     map: &Option<PathBuf>,
     grib: &Option<PathBuf>,
     ingest: &IngestOpts,
+    look: &LookOpts,
 ) -> anyhow::Result<CloudMap> {
     match (map, grib) {
-        (Some(m), _) => Ok(CloudMap::load(m)?),
+        (Some(m), _) => look.open_map(m),
         (None, Some(g)) => Ok(ingest.plan(g)?.build()),
         (None, None) => anyhow::bail!("give --map MAP.json or --grib FILE.grib2"),
     }
@@ -120,7 +121,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         check_out(d, &inputs)?;
     }
-    let map = load_or_ingest(&a.map, &a.grib, &a.ingest)?;
+    let map = load_or_ingest(&a.map, &a.grib, &a.ingest, &a.look)?;
     let source = a
         .map
         .as_ref()

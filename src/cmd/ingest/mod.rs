@@ -1,6 +1,8 @@
 //! `stratus ingest`: GRIB2 relative humidity → CloudMap, with a progress bar. The output's
 //! extension chooses the format: `.png` writes the PNG + `.json` sidecar pair, `.tif`/`.tiff`
 //! one georeferenced, tiled GeoTIFF with overviews (no sidecar: its metadata is inside).
+//! Several steps of one run (several files, or one file holding several) make a series
+//! (`series`): one map per step and the series sidecar.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,10 +14,15 @@ use stratus_ingest::error::shown;
 use super::files::check_out;
 use super::options::{progress_bar, IngestOpts};
 
+mod series;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// GRIB2 forecast file.
-    pub file: PathBuf,
+    /// GRIB2 forecast file(s). Several steps of one run (several files in increasing forecast
+    /// hour, or one file holding several steps) make a series: NAME-fHHH.png per step and the
+    /// series sidecar NAME.json.
+    #[arg(required = true, num_args = 1..)]
+    pub files: Vec<PathBuf>,
     #[command(flatten)]
     pub ingest: IngestOpts,
     /// Output: MAP.png (the sidecar goes next to it with a .json extension) or MAP.tif
@@ -40,14 +47,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             shown(&args.out)
         ),
     };
+    if let Some(steps) = series::steps_of(&args.files)? {
+        if !matches!(format, Format::Png) {
+            anyhow::bail!(
+                "{}: a series of {} steps is written as PNG maps; give --out NAME.png",
+                shown(&args.out),
+                steps.len()
+            );
+        }
+        return series::run(&args, &steps);
+    }
+    let file = &args.files[0];
     // Before the forecast is read: a bad output fails at once. (The write checks again.)
-    let inputs = [args.file.clone()];
+    let inputs = [file.clone()];
     check_out(&args.out, &inputs)?;
     if let Format::Png = format {
         check_out(&args.out.with_extension("json"), &inputs)?;
     }
     let t0 = Instant::now();
-    let plan = args.ingest.plan(&args.file)?;
+    let plan = args.ingest.plan(file)?;
     let pb = progress_bar(plan.height() as u64, "ingest rows");
     let progress = |done| pb.set_position(done as u64);
     // The library's error names the file; no context is added, so it is named once.

@@ -1,0 +1,263 @@
+//! The series sidecar (`NAME.json`, format [`SERIES_FORMAT`]): the run, the region and size
+//! every step shares, the layers, and per step its forecast hour, valid time, the step map's
+//! own sidecar and its layer-wind images. Read with a cap and checked field by field.
+
+use std::path::Path;
+
+use chrono::{DateTime, Utc};
+use serde::{Deserialize, Serialize};
+
+use crate::meta::LayerKind;
+use crate::region::{Region, MAX_SIDE};
+
+/// Format tag of a series sidecar.
+pub const SERIES_FORMAT: &str = "stratus-cloudmap-series/1";
+
+/// Most steps a series may list (a 16-day GFS run hourly is 385).
+pub const MAX_STEPS: usize = 1000;
+
+/// The series sidecar.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SeriesMeta {
+    pub format: String,
+    /// The run: analysis time shared by every step.
+    #[serde(with = "time_text")]
+    pub reference_time: DateTime<Utc>,
+    pub region: Region,
+    pub width: u32,
+    pub height: u32,
+    pub layers: Vec<SeriesLayer>,
+    /// In increasing forecast hour.
+    pub steps: Vec<SeriesStep>,
+}
+
+/// A layer every step map holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SeriesLayer {
+    pub kind: LayerKind,
+    pub channel: usize,
+    pub levels_hpa: Vec<f64>,
+}
+
+/// One forecast step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SeriesStep {
+    pub forecast_hour: f64,
+    #[serde(with = "time_text")]
+    pub valid_time: DateTime<Utc>,
+    /// The step map's sidecar, a file name in the series sidecar's folder.
+    pub map: String,
+    /// The step's per-pixel layer winds (its `wind-u`/`wind-v` structure images, m/s east and
+    /// north); `None` for a map without structure images.
+    #[serde(default)]
+    pub winds: Option<StepWinds>,
+}
+
+/// File names of a step map's layer-wind images (R/G/B = low/middle/high; docs/ingest.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepWinds {
+    pub u: String,
+    pub v: String,
+}
+
+/// A name that stays in the sidecar's folder.
+pub(crate) fn is_plain_name(name: &str) -> bool {
+    let p = Path::new(name);
+    !name.is_empty()
+        && p.file_name() == Some(p.as_os_str())
+        && !name.contains(['/', '\\'])
+        && name != ".."
+}
+
+impl SeriesMeta {
+    /// Check every field a reader will trust; the error names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.format != SERIES_FORMAT {
+            return Err(format!(
+                "format: {:?} is not {SERIES_FORMAT:?}",
+                self.format
+            ));
+        }
+        self.region.validate().map_err(|e| format!("region: {e}"))?;
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 || v > MAX_SIDE {
+                return Err(format!("{name}: {v} px is outside 1..={MAX_SIDE}"));
+            }
+        }
+        if self.layers.is_empty() {
+            return Err("layers: none".into());
+        }
+        for (i, l) in self.layers.iter().enumerate() {
+            if l.channel != l.kind.channel() {
+                return Err(format!(
+                    "layers[{i}]: channel {} is not the {} layer's ({})",
+                    l.channel,
+                    l.kind.name(),
+                    l.kind.channel()
+                ));
+            }
+            if self.layers[..i].iter().any(|o| o.kind == l.kind) {
+                return Err(format!("layers[{i}]: a second {} layer", l.kind.name()));
+            }
+        }
+        if self.steps.is_empty() || self.steps.len() > MAX_STEPS {
+            return Err(format!(
+                "steps: {} listed; a series has 1..={MAX_STEPS}",
+                self.steps.len()
+            ));
+        }
+        for (i, s) in self.steps.iter().enumerate() {
+            let at = format!("steps[{i}]");
+            if !(s.forecast_hour.is_finite() && (0.0..=100_000.0).contains(&s.forecast_hour)) {
+                return Err(format!(
+                    "{at}.forecast_hour: {} is not a forecast hour",
+                    s.forecast_hour
+                ));
+            }
+            if i > 0 && s.forecast_hour <= self.steps[i - 1].forecast_hour {
+                return Err(format!(
+                    "{at}.forecast_hour: +{} h does not follow +{} h (steps go in increasing hour, each once)",
+                    s.forecast_hour,
+                    self.steps[i - 1].forecast_hour
+                ));
+            }
+            let expected = crate::grib::info::after_step(self.reference_time, s.forecast_hour);
+            if (s.valid_time - expected).num_seconds().abs() > 1 {
+                return Err(format!(
+                    "{at}.valid_time: {} is not the run's {} + {} h",
+                    crate::meta::format_time(&s.valid_time),
+                    crate::meta::format_time(&self.reference_time),
+                    s.forecast_hour
+                ));
+            }
+            if !is_plain_name(&s.map) {
+                return Err(format!(
+                    "{at}.map: {:?} is not a file name in the sidecar's folder",
+                    s.map
+                ));
+            }
+            if let Some(w) = &s.winds {
+                for (k, n) in [("u", &w.u), ("v", &w.v)] {
+                    if !is_plain_name(n) {
+                        return Err(format!(
+                            "{at}.winds.{k}: {n:?} is not a file name in the sidecar's folder"
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Times as the map sidecars store them (RFC 3339, UTC, whole seconds).
+mod time_text {
+    use crate::meta::{format_time, parse_time};
+    use chrono::{DateTime, Utc};
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(t: &DateTime<Utc>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&format_time(t))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<DateTime<Utc>, D::Error> {
+        let s = String::deserialize(d)?;
+        parse_time(&s).map_err(D::Error::custom)
+    }
+}
+
+/// `forecast hour` as a file-name tag: `f006` for whole hours, `f001p50` otherwise.
+pub fn hour_tag(hour: f64) -> String {
+    if (hour - hour.round()).abs() < 1e-9 {
+        format!("f{:03}", hour.round() as i64)
+    } else {
+        let whole = hour.trunc() as i64;
+        let frac = ((hour - hour.trunc()) * 100.0).round() as i64;
+        format!("f{whole:03}p{frac:02}")
+    }
+}
+
+/// A forecast hour as people write it: `+6 h`, `+1.5 h`.
+pub fn show_hour(hour: f64) -> String {
+    if (hour - hour.round()).abs() < 1e-9 {
+        format!("+{} h", hour.round() as i64)
+    } else {
+        format!("+{hour} h")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn meta() -> SeriesMeta {
+        let t0 = crate::meta::parse_time("2015-09-12T18:00:00Z").unwrap();
+        let step = |h: f64, name: &str| SeriesStep {
+            forecast_hour: h,
+            valid_time: crate::grib::info::after_step(t0, h),
+            map: format!("{name}.json"),
+            winds: Some(StepWinds {
+                u: format!("{name}.wind-u.png"),
+                v: format!("{name}.wind-v.png"),
+            }),
+        };
+        SeriesMeta {
+            format: SERIES_FORMAT.into(),
+            reference_time: t0,
+            region: Region::parse("30,70,-60,40").unwrap(),
+            width: 64,
+            height: 32,
+            layers: vec![SeriesLayer {
+                kind: LayerKind::High,
+                channel: 2,
+                levels_hpa: vec![300.0],
+            }],
+            steps: vec![step(0.0, "m-f000"), step(6.0, "m-f006")],
+        }
+    }
+
+    #[test]
+    fn a_sidecar_round_trips_and_its_faults_are_named() {
+        let m = meta();
+        m.validate().unwrap();
+        let text = serde_json::to_string(&m).unwrap();
+        assert!(
+            text.contains("\"reference_time\":\"2015-09-12T18:00:00Z\""),
+            "{text}"
+        );
+        let back: SeriesMeta = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, m);
+
+        let mut bad = m.clone();
+        bad.steps.swap(0, 1);
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("steps[1].forecast_hour"));
+        let mut bad = m.clone();
+        bad.steps[1].forecast_hour = 0.0;
+        assert!(bad.validate().unwrap_err().contains("does not follow"));
+        let mut bad = m.clone();
+        bad.steps[1].map = "../x.json".into();
+        assert!(bad.validate().unwrap_err().contains("steps[1].map"));
+        let mut bad = m.clone();
+        bad.steps[0].valid_time = bad.steps[1].valid_time;
+        assert!(bad.validate().unwrap_err().contains("steps[0].valid_time"));
+        let mut bad = m.clone();
+        bad.format = "stratus-cloudmap/3".into();
+        assert!(bad.validate().unwrap_err().contains("format"));
+        let mut bad = m;
+        bad.steps.clear();
+        assert!(bad.validate().unwrap_err().contains("steps"));
+    }
+
+    #[test]
+    fn hour_tags_sort_and_read_back() {
+        assert_eq!(hour_tag(0.0), "f000");
+        assert_eq!(hour_tag(6.0), "f006");
+        assert_eq!(hour_tag(120.0), "f120");
+        assert_eq!(hour_tag(1.5), "f001p50");
+        assert_eq!(show_hour(6.0), "+6 h");
+        assert_eq!(show_hour(1.5), "+1.5 h");
+    }
+}

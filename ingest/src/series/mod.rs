@@ -1,0 +1,224 @@
+//! A CloudMap series: the maps of several forecast steps of one run (DESIGN §9), their series
+//! sidecar ([`meta`]), which input files make one ([`inputs`]), how it is written ([`write`]),
+//! and the weather at any moment of it ([`Series::at`]: the two steps around the moment
+//! carried along their layer winds and blended, [`advect`]).
+//!
+//! [`Series::load`] reads the series sidecar and checks every step's sidecar, PNG and
+//! structure images are there and match the series; step maps themselves are decoded only
+//! when a moment needs them, so a long series costs two maps of memory.
+
+pub mod advect;
+pub mod inputs;
+pub mod meta;
+pub mod write;
+
+use std::path::{Path, PathBuf};
+
+use chrono::{DateTime, Utc};
+
+use crate::cloudmap::{load_meta, CloudMap};
+use crate::error::{shown, IngestError, Result};
+use crate::meta::CloudMapMeta;
+
+pub use advect::{advect, blend};
+pub use meta::{SeriesMeta, SeriesStep, SERIES_FORMAT};
+
+/// A series sidecar, checked, with its step maps' sidecars.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub path: PathBuf,
+    pub meta: SeriesMeta,
+    /// Each step's map sidecar (same order as `meta.steps`).
+    pub step_metas: Vec<CloudMapMeta>,
+}
+
+/// Whether `path` is a series sidecar (its `format` says so). A file that cannot be read or
+/// parsed is not one: the map loader then reports what is wrong with it.
+pub fn is_series(path: &Path) -> bool {
+    #[derive(serde::Deserialize)]
+    struct Peek {
+        format: Option<String>,
+    }
+    crate::input::read_sidecar_text(path)
+        .ok()
+        .and_then(|t| serde_json::from_str::<Peek>(&t).ok())
+        .and_then(|p| p.format)
+        .is_some_and(|f| f == SERIES_FORMAT)
+}
+
+/// The map a `--map` argument names at `time`: a series' moment ([`Series::at`]; its first
+/// step without a time) or a plain CloudMap (loaded as is; `time` is then only the Sun's).
+pub fn open_map(path: &Path, time: Option<DateTime<Utc>>) -> Result<CloudMap> {
+    if !is_series(path) {
+        return CloudMap::load(path);
+    }
+    let s = Series::load(path)?;
+    match time {
+        Some(t) => s.at(t),
+        None => s.step_map(0),
+    }
+}
+
+/// The files a `--map` argument reads: a series' sidecar and every file of its steps, or a
+/// map's sidecar and PNG (as far as the sidecars can be read).
+pub fn map_files(path: &Path) -> Vec<PathBuf> {
+    let mut files = vec![path.to_path_buf()];
+    if is_series(path) {
+        if let Ok(s) = Series::load(path) {
+            files.extend(s.files());
+        }
+    } else if let Ok(meta) = load_meta(path) {
+        files.push(meta.image_path(path));
+    }
+    files
+}
+
+impl Series {
+    /// Read and check the series sidecar `path` and each step's sidecar: present, valid, of the
+    /// series' region, size and layers, its PNG and structure images present. The first fault
+    /// is one error naming the series sidecar, the step and the file.
+    pub fn load(path: &Path) -> Result<Series> {
+        let text = crate::input::read_sidecar_text(path)?;
+        let meta: SeriesMeta = serde_json::from_str(&text)
+            .map_err(|e| IngestError::series(path, format!("series sidecar is not valid: {e}")))?;
+        meta.validate()
+            .map_err(|e| IngestError::series(path, format!("series sidecar: {e}")))?;
+        let dir = folder(path);
+        let mut step_metas = Vec::with_capacity(meta.steps.len());
+        for s in &meta.steps {
+            let at = |msg: String| {
+                IngestError::series(
+                    path,
+                    format!("step {}: {msg}", meta::show_hour(s.forecast_hour)),
+                )
+            };
+            let sidecar = dir.join(&s.map);
+            let m = load_meta(&sidecar).map_err(|e| at(e.to_string()))?;
+            if m.region != meta.region || (m.width, m.height) != (meta.width, meta.height) {
+                return Err(at(format!(
+                    "{}: its region or size is not the series'",
+                    shown(&sidecar)
+                )));
+            }
+            let kinds: Vec<_> = m.layers.iter().map(|l| l.kind).collect();
+            let want: Vec<_> = meta.layers.iter().map(|l| l.kind).collect();
+            if kinds != want {
+                return Err(at(format!(
+                    "{}: its layers are not the series'",
+                    shown(&sidecar)
+                )));
+            }
+            let mut images = vec![m.image_path(&sidecar)];
+            images.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
+            if let Some(w) = &s.winds {
+                images.extend([dir.join(&w.u), dir.join(&w.v)]);
+            }
+            if let Some(missing) = images.iter().find(|p| !p.is_file()) {
+                return Err(at(format!("{}: missing", shown(missing))));
+            }
+            step_metas.push(m);
+        }
+        Ok(Series {
+            path: path.to_path_buf(),
+            meta,
+            step_metas,
+        })
+    }
+
+    pub fn steps(&self) -> &[SeriesStep] {
+        &self.meta.steps
+    }
+
+    /// Index of the step at `hour`, if the series has it.
+    pub fn step_at_hour(&self, hour: f64) -> Option<usize> {
+        self.meta
+            .steps
+            .iter()
+            .position(|s| (s.forecast_hour - hour).abs() < 1e-6)
+    }
+
+    /// The hours the series holds, as people write them (`+0 h, +6 h`).
+    pub fn hours_text(&self) -> String {
+        self.meta
+            .steps
+            .iter()
+            .map(|s| meta::show_hour(s.forecast_hour))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Load step `k`'s map (PNG and structure checked as [`CloudMap::load`] does).
+    pub fn step_map(&self, k: usize) -> Result<CloudMap> {
+        let s = self.meta.steps.get(k).ok_or_else(|| {
+            IngestError::series(
+                &self.path,
+                format!("no step {k} (it has {})", self.meta.steps.len()),
+            )
+        })?;
+        let sidecar = folder(&self.path).join(&s.map);
+        CloudMap::load(&sidecar).map_err(|e| {
+            IngestError::series(
+                &self.path,
+                format!("step {}: {e}", meta::show_hour(s.forecast_hour)),
+            )
+        })
+    }
+
+    /// The weather at `time`: the step map where a step is valid then; between two steps their
+    /// semi-Lagrangian blend ([`blend`]); before the first or after the last step that step
+    /// unchanged (the forecast says nothing beyond, so the weather is held).
+    pub fn at(&self, time: DateTime<Utc>) -> Result<CloudMap> {
+        let steps = &self.meta.steps;
+        let after = steps.iter().position(|s| s.valid_time > time);
+        let k = match after {
+            Some(0) => {
+                tracing::warn!(
+                    "{} is before the series' first step: first step held",
+                    crate::meta::format_time(&time)
+                );
+                return self.step_map(0);
+            }
+            None => {
+                if steps.last().is_some_and(|s| s.valid_time < time) {
+                    tracing::warn!(
+                        "{} is after the series' last step: last step held",
+                        crate::meta::format_time(&time)
+                    );
+                }
+                return self.step_map(steps.len() - 1);
+            }
+            Some(k) => k - 1,
+        };
+        if steps[k].valid_time == time {
+            return self.step_map(k);
+        }
+        let (t0, t1) = (steps[k].valid_time, steps[k + 1].valid_time);
+        let interval = (t1 - t0).num_milliseconds() as f64 / 1000.0;
+        let w = (time - t0).num_milliseconds() as f64 / 1000.0 / interval;
+        let (a, b) = (self.step_map(k)?, self.step_map(k + 1)?);
+        blend(&a, &b, w, interval).map_err(|e| IngestError::series(&self.path, e))
+    }
+
+    /// Every file the series reads: its step sidecars, PNGs and structure images.
+    pub fn files(&self) -> Vec<PathBuf> {
+        let dir = folder(&self.path);
+        let mut v = Vec::new();
+        for (s, m) in self.meta.steps.iter().zip(&self.step_metas) {
+            let sidecar = dir.join(&s.map);
+            v.push(m.image_path(&sidecar));
+            v.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
+            v.push(sidecar);
+        }
+        v
+    }
+}
+
+fn folder(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,247 @@
+//! A CloudMap series end to end through the binary, on the two real GFS steps (+0 h, +6 h of
+//! the 2015-09-12 18 UTC run): ingest of several files, the series sidecar, `probe --time`,
+//! `verify-advection`, and every bad input the issue lists (exit 2, one line naming the file,
+//! nothing written).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{shared, stratus};
+use stratus_ingest::cloudmap::CloudMap;
+
+const REGION: [&str; 4] = ["--region", "30,70,-60,40", "--size", "256x128"];
+
+/// The two series files, or `None` (with the reason printed) where ../shared is absent.
+fn steps() -> Option<(PathBuf, PathBuf)> {
+    let f0 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    if f0.is_file() && f6.is_file() {
+        Some((f0, f6))
+    } else {
+        eprintln!(
+            "skipped: {} not found (../shared/data/gfs-series)",
+            f0.display()
+        );
+        None
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn ingest(files: &[&Path], out: &Path) -> std::process::Output {
+    let mut args = vec!["ingest"];
+    args.extend(files.iter().map(|f| s(f)));
+    args.extend_from_slice(&REGION);
+    args.extend_from_slice(&["--out", s(out)]);
+    stratus(&args)
+}
+
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Exit 2, one stderr line that names `file` and says `what`.
+fn assert_refused(o: &std::process::Output, file: &Path, what: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(err.contains(s(file)), "names {}: {err}", file.display());
+    assert!(err.contains(what), "says {what:?}: {err}");
+}
+
+#[test]
+fn the_real_steps_round_trip_as_a_series() {
+    let Some((f0, f6)) = steps() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("na.png");
+    let o = ingest(&[&f0, &f6], &out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut want = vec!["na.json".to_string()];
+    for step in ["na-f000", "na-f006"] {
+        for suffix in [
+            ".base.png",
+            ".json",
+            ".png",
+            ".top.png",
+            ".type.png",
+            ".wind-u.png",
+            ".wind-v.png",
+        ] {
+            want.push(format!("{step}{suffix}"));
+        }
+    }
+    want.sort();
+    assert_eq!(names_in(dir.path()), want);
+
+    let series: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("na.json")).unwrap())
+            .unwrap();
+    assert_eq!(series["format"], "stratus-cloudmap-series/1");
+    assert_eq!(series["reference_time"], "2015-09-12T18:00:00Z");
+    let st = series["steps"].as_array().unwrap();
+    assert_eq!(st.len(), 2);
+    assert_eq!(st[1]["forecast_hour"], 6.0);
+    assert_eq!(st[1]["valid_time"], "2015-09-13T00:00:00Z");
+    assert_eq!(st[1]["map"], "na-f006.json");
+    assert_eq!(st[1]["winds"]["u"], "na-f006.wind-u.png");
+    assert_eq!(st[1]["winds"]["v"], "na-f006.wind-v.png");
+    let kinds: Vec<&str> = series["layers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["low", "middle", "high"]);
+
+    // Each step map is exactly what a single-file ingest of its file makes.
+    let single = dir.path().join("single");
+    std::fs::create_dir(&single).unwrap();
+    let o = ingest(&[&f6], &single.join("one.png"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let one = CloudMap::load(&single.join("one.json")).unwrap();
+    assert_eq!(
+        one.meta.format, "stratus-cloudmap/3",
+        "one file, one step: a plain map"
+    );
+    let step = CloudMap::load(&dir.path().join("na-f006.json")).unwrap();
+    assert_eq!(step.texels, one.texels);
+    assert_eq!(step.structure, one.structure);
+    assert_eq!(step.meta.layers, one.meta.layers);
+
+    // --map takes the series: without a time its first step, with one the moment.
+    let probe = |map: &Path, time: Option<&str>| {
+        let mut args = vec!["probe", "--map", s(map), "--at", "50,-20", "--json"];
+        if let Some(t) = time {
+            args.extend(["--time", t]);
+        }
+        let o = stratus(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let series_json = dir.path().join("na.json");
+    assert_eq!(
+        probe(&series_json, None),
+        probe(&dir.path().join("na-f000.json"), None)
+    );
+    assert_eq!(
+        probe(&series_json, Some("2015-09-13T00:00:00Z")),
+        probe(&dir.path().join("na-f006.json"), None)
+    );
+    let mid = probe(&series_json, Some("2015-09-12T21:00:00Z"));
+    assert_eq!(mid["layers"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn verify_advection_prints_the_json_the_issue_names() {
+    let Some((f0, f6)) = steps() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("na.png");
+    assert!(ingest(&[&f0, &f6], &out).status.success());
+    let map = dir.path().join("na.json");
+    let o = stratus(&[
+        "verify-advection",
+        "--map",
+        s(&map),
+        "--from",
+        "0",
+        "--to",
+        "6",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let top: Vec<&String> = v.as_object().unwrap().keys().collect();
+    assert_eq!(top, ["layers"]);
+    let layers = v["layers"].as_array().unwrap();
+    let kinds: Vec<&str> = layers.iter().map(|l| l["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["low", "middle", "high"]);
+    for l in layers {
+        let mut keys: Vec<&String> = l.as_object().unwrap().keys().collect();
+        keys.sort();
+        assert_eq!(keys, ["advected", "kind", "persistence"]);
+        for k in ["advected", "persistence"] {
+            let d = l[k].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&d), "{k} {d}");
+        }
+        // Carrying the clouds changes them: advected and persistence are not the same map.
+        assert_ne!(l["advected"], l["persistence"]);
+    }
+    // A step the series does not have is named with the ones it has.
+    let o = stratus(&[
+        "verify-advection",
+        "--map",
+        s(&map),
+        "--from",
+        "0",
+        "--to",
+        "12",
+    ]);
+    assert_refused(&o, &map, "no step at +12 h; the series has +0 h, +6 h");
+}
+
+#[test]
+fn files_that_are_not_one_series_are_refused_and_nothing_is_written() {
+    let Some((f0, f6)) = steps() else { return };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let other_grid = root.join("data-samples/synthetic-gfs-rh.grib2");
+    let other_run = root.join("data-samples/gfs-2011011012-f120-2p5.grib2");
+    let cases: [(&[&Path], &Path, &str); 4] = [
+        (&[&f0, &other_grid], &other_grid, "a series is one grid"),
+        (&[&f0, &other_run], &other_run, "a series is one run"),
+        (&[&f0, &f6, &f6], &f6, "step +6 h is duplicated"),
+        (&[&f6, &f0], &f0, "steps out of order"),
+    ];
+    for (files, named, what) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let o = ingest(files, &dir.path().join("na.png"));
+        assert_refused(&o, named, what);
+        assert_eq!(names_in(dir.path()), Vec::<String>::new(), "{what}");
+    }
+    // The order message gives the order expected.
+    let dir = tempfile::tempdir().unwrap();
+    let o = ingest(&[&f6, &f0], &dir.path().join("na.png"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("increasing forecast hour: {} {}", s(&f0), s(&f6))),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_series_whose_step_maps_are_missing_is_refused() {
+    let Some((f0, f6)) = steps() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    assert!(ingest(&[&f0, &f6], &dir.path().join("na.png"))
+        .status
+        .success());
+    let map = dir.path().join("na.json");
+    for (gone, what) in [
+        ("na-f006.wind-u.png", "missing"),
+        ("na-f006.json", "cannot read"),
+    ] {
+        std::fs::remove_file(dir.path().join(gone)).unwrap();
+        let before = names_in(dir.path());
+        let o = stratus(&["probe", "--map", s(&map), "--at", "50,-20"]);
+        assert_refused(&o, &dir.path().join(gone), what);
+        assert!(String::from_utf8_lossy(&o.stderr).contains(s(&map)));
+        let o = stratus(&[
+            "verify-advection",
+            "--map",
+            s(&map),
+            "--from",
+            "0",
+            "--to",
+            "6",
+        ]);
+        assert_refused(&o, &dir.path().join(gone), what);
+        assert_eq!(names_in(dir.path()), before, "nothing written");
+    }
+}
