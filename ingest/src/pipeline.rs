@@ -16,7 +16,7 @@ use crate::cloudmap::{
 use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, RhLevel};
-use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter};
+use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter, PageBand, PageSpec};
 use crate::meta::{
     AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
     StructureGrid, FORMAT,
@@ -24,7 +24,7 @@ use crate::meta::{
 use crate::output::{check_output, ensure_not_input, write_atomic, write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
-use crate::structure::structure_grid;
+use crate::structure::{structure_grid, StructureBand, STRUCTURE_NODATA};
 use crate::weather::pixels::{PixelSampler, Placement, StructureStats};
 use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
 
@@ -401,8 +401,9 @@ impl Plan {
     /// COG layout, EPSG:4326), written atomically ([`crate::output::write_atomic`]); it may
     /// not be the forecast file read. No sidecar is written: the sidecar's content (layers,
     /// times, source) is carried in the file as the GDAL metadata item `STRATUS_CLOUDMAP`.
-    /// Returns that metadata, coverage statistics filled in. `progress` is called with the
-    /// number of rows done.
+    /// When the forecast held more than RH, the structure follows as a second image
+    /// ([`Plan::geotiff_structure`]). Returns that metadata, coverage statistics filled in.
+    /// `progress` is called with the number of coverage rows done.
     pub fn write_geotiff(
         &self,
         tif_path: &Path,
@@ -427,9 +428,30 @@ impl Plan {
             deflate: true,
         };
         let bands = self.bands(self.height);
+        let structure = self.geotiff_structure();
         let mut done_meta = None;
         write_atomic(tif_path, |w| {
             let mut gt = GeoTiffWriter::new(spec).map_err(|e| e.to_string())?;
+            if let Some((page, layout)) = &structure {
+                gt.add_page(page.clone()).map_err(|e| e.to_string())?;
+                let rows = self.bands(page.height as usize);
+                for chunk in rows.chunks(rayon::current_num_threads().max(1) * 2) {
+                    let parts: Vec<Vec<f32>> = chunk
+                        .par_iter()
+                        .map(|&(a, b)| {
+                            let mut v = Vec::new();
+                            for j in a..b {
+                                self.sampler
+                                    .append_physical_row(layout, j, page.nodata, &mut v);
+                            }
+                            v
+                        })
+                        .collect();
+                    for p in parts {
+                        gt.push_page_rows(&p).map_err(|e| e.to_string())?;
+                    }
+                }
+            }
             let mut done = 0;
             let mut st = Stats::default();
             for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
@@ -453,6 +475,55 @@ impl Plan {
             Ok(())
         })?;
         done_meta.ok_or_else(|| IngestError::write(tif_path, "nothing was written"))
+    }
+
+    /// The GeoTIFF's structure image and its bands, when the forecast held more than RH
+    /// (`source.fields`): the structure images' lattice and values, decoded to physical units
+    /// (docs/ingest.md, "GeoTIFF"). From RH alone the structure says little the coverage and
+    /// the layers' bands do not (RH-column crossings on the standard atmosphere, each layer's
+    /// default type, no wind), and the file stays the four coverage bands.
+    pub fn geotiff_structure(&self) -> Option<(PageSpec, Vec<StructureBand>)> {
+        if self.meta.source.fields.is_empty() {
+            return None;
+        }
+        let kinds: Vec<LayerKind> = self.meta.layers.iter().map(|l| l.kind).collect();
+        let layout = StructureBand::of_layers(&kinds);
+        let g = self.sampler.lattice();
+        let r = &self.meta.region;
+        // The coverage image's longitudes, shifted by whole turns into [-180, 180) at the
+        // region's west edge; the lattice moves with them.
+        let shift = GeoRef::of_region(r, 1, 1).west - r.west;
+        let bands = layout
+            .iter()
+            .map(|b| PageBand {
+                description: b.description(),
+                unit: b.unit().into(),
+                items: b
+                    .codes()
+                    .map(|c| vec![("CODES".to_string(), c)])
+                    .unwrap_or_default(),
+            })
+            .collect();
+        let page = PageSpec {
+            width: g.width,
+            height: g.height,
+            georef: GeoRef {
+                west: g.west + shift,
+                north: g.north,
+                dx: g.dlon,
+                dy: g.dlat,
+            },
+            bands,
+            nodata: STRUCTURE_NODATA,
+            metadata: vec![(
+                "STRATUS_STRUCTURE".into(),
+                "cloud structure of the coverage map (GTIFF_DIR:1): point samples on the \
+                 forecast grid's lattice; read base, top and wind bilinear, type and source \
+                 at the nearest pixel; altitudes in m above mean sea level"
+                    .into(),
+            )],
+        };
+        Some((page, layout))
     }
 
     pub fn height(&self) -> usize {
