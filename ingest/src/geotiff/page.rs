@@ -228,7 +228,7 @@ fn format_nodata(v: f32) -> String {
 }
 
 /// A tile's bytes: the floating-point predictor per tile row, then Deflate.
-fn encode_float_tile(tile: &[f32], samples: usize) -> Vec<u8> {
+pub(super) fn encode_float_tile(tile: &[f32], samples: usize) -> Vec<u8> {
     let row_values = TILE as usize * samples;
     let mut raw = Vec::with_capacity(tile.len() * 4);
     let mut planes = vec![0u8; row_values * 4];
