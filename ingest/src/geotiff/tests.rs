@@ -432,8 +432,7 @@ fn read_page(file: &[u8], tags: &Tags) -> (usize, usize, Vec<f32>) {
                 let (gx, gy) = (tx * t + x, ty * t + y);
                 let at = (y * t + x) * n;
                 if gx < w && gy < h {
-                    px[(gy * w + gx) * n..(gy * w + gx + 1) * n]
-                        .copy_from_slice(&tile[at..at + n]);
+                    px[(gy * w + gx) * n..(gy * w + gx + 1) * n].copy_from_slice(&tile[at..at + n]);
                 } else {
                     assert!(tile[at..at + n].iter().all(|&v| v == 0.0), "padding");
                 }
@@ -457,7 +456,8 @@ fn a_page_follows_the_main_image_and_reads_back() {
         for (k, rows) in px.chunks(w * 37).enumerate() {
             g.push_rows(rows).unwrap();
             let pj1 = (pj + k % 4 + 1).min(ph);
-            g.push_page_rows(&values[pj * pw * n..pj1 * pw * n]).unwrap();
+            g.push_page_rows(&values[pj * pw * n..pj1 * pw * n])
+                .unwrap();
             pj = pj1;
         }
         g.push_page_rows(&values[pj * pw * n..]).unwrap();
@@ -499,7 +499,10 @@ fn a_page_follows_the_main_image_and_reads_back() {
         );
         assert_eq!(p[&GDAL_NODATA].2, b"-9999\0");
         let xml = String::from_utf8(p[&GDAL_METADATA].2.clone()).unwrap();
-        assert!(xml.contains("<Item name=\"STRATUS_PAGE\">page</Item>"), "{xml}");
+        assert!(
+            xml.contains("<Item name=\"STRATUS_PAGE\">page</Item>"),
+            "{xml}"
+        );
         assert!(xml.contains(
             "<Item name=\"DESCRIPTION\" sample=\"0\" role=\"description\">band 0 &lt;x&gt;</Item>"
         ));
