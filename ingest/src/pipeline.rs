@@ -725,7 +725,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let all = fixtures::valid_rh_fields();
         let plan = fixture_plan(dir.path(), &all);
-        let (page, layout) = plan.geotiff_structure().expect("RH + gh has a structure page");
+        let (page, layout) = plan
+            .geotiff_structure()
+            .expect("RH + gh has a structure page");
         let kinds: Vec<LayerKind> = plan.meta.layers.iter().map(|l| l.kind).collect();
         assert_eq!(layout, StructureBand::of_layers(&kinds));
         assert_eq!(layout.len(), 6 * kinds.len() + 2);
@@ -733,7 +735,12 @@ mod tests {
         let g = plan.structure_grid();
         assert_eq!((page.width, page.height), (g.width, g.height));
         assert_eq!(
-            (page.georef.west, page.georef.north, page.georef.dx, page.georef.dy),
+            (
+                page.georef.west,
+                page.georef.north,
+                page.georef.dx,
+                page.georef.dy
+            ),
             (g.west, g.north, g.dlon, g.dlat)
         );
         assert_eq!(page.bands[0].unit, "m");
@@ -752,10 +759,13 @@ mod tests {
                     let want = match b {
                         StructureBand::Base(k) => m(sample_to_altitude(ms.base[p][k.channel()])),
                         StructureBand::Top(k) => m(sample_to_altitude(ms.top[p][k.channel()])),
-                        StructureBand::Type(k) => m(CloudType::from_code(ms.types[p][k.channel()])
-                            .map(|t| t.code() as f64)),
-                        StructureBand::Source(k) => m(unpack_source(ms.types[p][3], k.channel())
-                            .map(|s| s as u8 as f64)),
+                        StructureBand::Type(k) => {
+                            m(CloudType::from_code(ms.types[p][k.channel()])
+                                .map(|t| t.code() as f64))
+                        }
+                        StructureBand::Source(k) => {
+                            m(unpack_source(ms.types[p][3], k.channel()).map(|s| s as u8 as f64))
+                        }
                         // The fixture has no wind: none, not the images' 0 m/s.
                         StructureBand::WindU(k) | StructureBand::WindV(k) => {
                             assert!(plan.sampler.winds[k.channel()].is_none());

@@ -102,7 +102,7 @@ impl Page {
         for r in values.chunks_exact(row) {
             self.strip.extend_from_slice(r);
             self.rows_in += 1;
-            if self.rows_in % TILE as usize == 0 || self.rows_in == height {
+            if self.rows_in.is_multiple_of(TILE as usize) || self.rows_in == height {
                 let strip = std::mem::take(&mut self.strip);
                 let tiles = self.cut_tiles(&strip);
                 self.tiles.extend(tiles);
