@@ -23,6 +23,10 @@
 //!   `GeographicTypeGeoKey` = 4326 (WGS 84);
 //! - `GDAL_METADATA` (tag 42112): band descriptions, scale 1/65535 (so GDAL users can read
 //!   coverage fractions), and dataset items given by the caller.
+//! - optionally a second image ([`PageSpec`], `page.rs`): Float32 bands on their own lattice
+//!   (the map's structure), second in the IFD chain and its tiles first after the IFDs. One
+//!   TIFF image has one sample type and GDAL one nodata value per image, so it cannot be more
+//!   bands of the coverage image; without it the file is exactly what it was before pages.
 //!
 //! Longitudes stay continuous: the west edge is taken into [-180, 180) and the east edge is
 //! west + span, so a region across the date line (`150..-150`) is written as 150..210.
