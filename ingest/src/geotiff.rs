@@ -281,9 +281,8 @@ impl GeoTiffWriter {
                 push_row(&mut self.levels, k + 1, down, deflate);
             }
         }
-        if let Some(p) = &self.page {
-            p.check_complete()
-                .map_err(|e| GeoTiffError::Page(Box::new(e)))?;
+        if let Some(p) = &mut self.page {
+            p.seal().map_err(|e| GeoTiffError::Page(Box::new(e)))?;
         }
         let xml = gdal_metadata(&self.spec.band_names, metadata);
         // The IFD chain: full resolution, the page (so GDAL numbers it 2 whatever the

@@ -3,10 +3,12 @@
 //! subdataset `GTIFF_DIR:2:FILE`.
 //!
 //! What is written: one image of N samples per pixel, IEEE 32-bit floats (`SampleFormat` 3),
-//! chunky, min-is-black with N − 1 unspecified `ExtraSamples`; 256×256 tiles, Deflate with the
-//! floating-point predictor (3, TIFF Technical Note 3: per tile row, each value's bytes split
-//! into planes, most significant first, then each byte minus the one N before it); no
-//! overviews (the image is a few hundred pixels a side at 2.5°). Georeferenced as
+//! planar (`PlanarConfiguration` 2: each band's tiles apart, all of band 1's first, so a reader
+//! of one band reads only its tiles, and Deflate sees one smooth field at a time: a third smaller
+//! than chunky on East Asia's), min-is-black with N − 1 unspecified `ExtraSamples`; 256×256
+//! tiles, Deflate with the floating-point predictor (3, TIFF Technical Note 3: per tile row,
+//! each value's bytes split into planes, most significant first, then each byte minus the one
+//! before it); no overviews (the image is a few hundred pixels a side at 2.5°). Georeferenced as
 //! pixel-is-point (`GTRasterTypeGeoKey` 2): pixel (i, j) is a sample at `west + i·dx`,
 //! `north − j·dy`, exactly where the structure lattice puts it. `GDAL_METADATA` holds band
 //! descriptions, units and items; `GDAL_NODATA` (tag 42113) the value standing for "none".
@@ -52,11 +54,13 @@ pub struct PageSpec {
     pub metadata: Vec<(String, String)>,
 }
 
-/// A page being filled: a strip of up to [`TILE`] rows and the tiles made so far.
+/// A page being filled: a strip of up to [`TILE`] rows and each band's tiles made so far.
 pub(super) struct Page {
     pub(super) spec: PageSpec,
     strip: Vec<f32>,
     pub(super) rows_in: usize,
+    band_tiles: Vec<Vec<Vec<u8>>>,
+    /// Every tile in file order (band by band), once [`Page::seal`] has run.
     pub(super) tiles: Vec<Vec<u8>>,
 }
 
@@ -75,6 +79,7 @@ impl Page {
             return Err(GeoTiffError::BadBands(spec.bands.len()));
         }
         Ok(Page {
+            band_tiles: vec![Vec::new(); spec.bands.len()],
             spec,
             strip: Vec::new(),
             rows_in: 0,
@@ -105,37 +110,51 @@ impl Page {
             if self.rows_in.is_multiple_of(TILE as usize) || self.rows_in == height {
                 let strip = std::mem::take(&mut self.strip);
                 let tiles = self.cut_tiles(&strip);
-                self.tiles.extend(tiles);
+                for (band, t) in self.band_tiles.iter_mut().zip(tiles) {
+                    band.extend(t);
+                }
             }
         }
         Ok(())
     }
 
-    pub(super) fn check_complete(&self) -> Result<(), GeoTiffError> {
+    /// Check every row is in and put the tiles in file order.
+    pub(super) fn seal(&mut self) -> Result<(), GeoTiffError> {
         let (pushed, height) = (self.rows_in as u32, self.spec.height);
         if pushed != height {
             return Err(GeoTiffError::MissingRows { pushed, height });
         }
+        self.tiles = std::mem::take(&mut self.band_tiles).concat();
         Ok(())
     }
 
-    /// Cut a strip (whole rows, at most [`TILE`]) into zero-padded tiles, encoded in parallel.
-    fn cut_tiles(&self, strip: &[f32]) -> Vec<Vec<u8>> {
+    /// Cut a strip (whole rows, at most [`TILE`]) into each band's zero-padded tiles (left to
+    /// right), encoded in parallel.
+    fn cut_tiles(&self, strip: &[f32]) -> Vec<Vec<Vec<u8>>> {
         let (n, t) = (self.samples(), TILE as usize);
         let width = self.spec.width as usize;
         let rows = strip.len() / (width * n);
-        (0..width.div_ceil(t))
+        let across = width.div_ceil(t);
+        let mut flat: Vec<Vec<u8>> = (0..n * across)
             .into_par_iter()
-            .map(|tx| {
-                let mut tile = vec![0f32; t * t * n];
+            .map(|k| {
+                let (band, tx) = (k / across, k % across);
+                let mut tile = vec![0f32; t * t];
                 let (x0, x1) = (tx * t, ((tx + 1) * t).min(width));
                 for y in 0..rows {
-                    tile[y * t * n..(y * t + x1 - x0) * n]
-                        .copy_from_slice(&strip[(y * width + x0) * n..(y * width + x1) * n]);
+                    for (d, x) in tile[y * t..y * t + x1 - x0].iter_mut().zip(x0..x1) {
+                        *d = strip[(y * width + x) * n + band];
+                    }
                 }
-                encode_float_tile(&tile, n)
+                encode_float_tile(&tile, 1)
             })
-            .collect()
+            .collect();
+        let mut out = Vec::with_capacity(n);
+        for _ in 0..n {
+            let rest = flat.split_off(across);
+            out.push(std::mem::replace(&mut flat, rest));
+        }
+        out
     }
 
     /// The page's IFD, its tile offsets and counts still to fill.
@@ -150,7 +169,7 @@ impl Page {
             Entry::short(COMPRESSION, &[8]),
             Entry::short(PHOTOMETRIC, &[1]),
             Entry::short(SAMPLES_PER_PIXEL, &[n as u16]),
-            Entry::short(PLANAR_CONFIGURATION, &[1]),
+            Entry::short(PLANAR_CONFIGURATION, &[2]),
             Entry::short(PREDICTOR, &[PREDICTOR_FLOAT]),
             Entry::short(TILE_WIDTH, &[TILE as u16]),
             Entry::short(TILE_LENGTH, &[TILE as u16]),

@@ -404,7 +404,7 @@ fn page_spec(w: u32, h: u32, n: usize) -> PageSpec {
     }
 }
 
-/// Decode a page's pixels (Float32, chunky, predictor 3, Deflate).
+/// Decode a page's pixels (Float32, planar, predictor 3, Deflate) into pixel-interleaved order.
 fn read_page(file: &[u8], tags: &Tags) -> (usize, usize, Vec<f32>) {
     let (w, h) = (
         int(tags, IMAGE_WIDTH) as usize,
@@ -417,24 +417,25 @@ fn read_page(file: &[u8], tags: &Tags) -> (usize, usize, Vec<f32>) {
     let offsets = ints(tags, TILE_OFFSETS);
     let counts = ints(tags, TILE_BYTE_COUNTS);
     let across = w.div_ceil(t);
-    assert_eq!(offsets.len(), across * h.div_ceil(t));
+    let per_band = across * h.div_ceil(t);
+    assert_eq!(offsets.len(), per_band * n);
     let mut px = vec![f32::NAN; w * h * n];
     for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
         let mut raw = Vec::new();
         flate2::read::ZlibDecoder::new(&file[o as usize..(o + c) as usize])
             .read_to_end(&mut raw)
             .unwrap();
-        assert_eq!(raw.len(), t * t * n * 4, "tile {i} is not a whole tile");
-        let tile = page::decode_float_tile(&raw, n);
-        let (tx, ty) = (i % across, i / across);
+        assert_eq!(raw.len(), t * t * 4, "tile {i} is not a whole tile");
+        let tile = page::decode_float_tile(&raw, 1);
+        let (band, k) = (i / per_band, i % per_band);
+        let (tx, ty) = (k % across, k / across);
         for y in 0..t {
             for x in 0..t {
                 let (gx, gy) = (tx * t + x, ty * t + y);
-                let at = (y * t + x) * n;
                 if gx < w && gy < h {
-                    px[(gy * w + gx) * n..(gy * w + gx + 1) * n].copy_from_slice(&tile[at..at + n]);
+                    px[(gy * w + gx) * n + band] = tile[y * t + x];
                 } else {
-                    assert!(tile[at..at + n].iter().all(|&v| v == 0.0), "padding");
+                    assert_eq!(tile[y * t + x], 0.0, "padding");
                 }
             }
         }
@@ -481,7 +482,7 @@ fn a_page_follows_the_main_image_and_reads_back() {
         assert_eq!(ints(p, SAMPLE_FORMAT), vec![3; n]);
         assert_eq!(int(p, SAMPLES_PER_PIXEL), n as u64);
         assert_eq!(int(p, PHOTOMETRIC), 1);
-        assert_eq!(int(p, PLANAR_CONFIGURATION), 1);
+        assert_eq!(int(p, PLANAR_CONFIGURATION), 2);
         if n > 1 {
             assert_eq!(ints(p, EXTRA_SAMPLES), vec![0; n - 1]);
         } else {
