@@ -2,6 +2,9 @@
 //! `gdallocationinfo` (Debian's `gdal-bin`; `scripts/deps.sh` installs it). Checks the size,
 //! the bounds against the region, EPSG:4326, 256×256 blocks, the overviews, and band values
 //! equal to the PNG's at several pixels (and the first overview's to the PNG's 2×2 mean).
+//! The structure image (`GTIFF_DIR:2:FILE`): named Float32 bands with units and nodata on the
+//! structure lattice, whose values at lattice points are what `stratus probe` and the PNG
+//! set's structure images say; an RH-only file has none.
 //! Without GDAL these tests say why and pass; the writer's own tests (`stratus-ingest`,
 //! `geotiff::tests`) read the file back without GDAL.
 
@@ -11,7 +14,11 @@ use std::process::{Command, Stdio};
 
 use serde_json::Value;
 use stratus_ingest::geotiff::pyramid;
-use stratus_ingest::CloudMap;
+use stratus_ingest::structure::{
+    sample_to_altitude, sample_to_wind, unpack_source, StructureBand, STRUCTURE_NODATA,
+};
+use stratus_ingest::weather::CloudType;
+use stratus_ingest::{CloudMap, LayerKind};
 
 fn sample() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/gfs-2011011012-f120-2p5.grib2")
@@ -314,4 +321,282 @@ fn the_extension_chooses_the_format_and_others_are_refused() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("is the input"), "{err}");
     assert_eq!(std::fs::read(&copy).unwrap(), std::fs::read(&gfs).unwrap());
+}
+
+/// `gdallocationinfo -valonly` of `dataset` at each line of `points` (`-wgs84`: "lon lat"; else
+/// pixel coordinates), `bands` values a point.
+fn float_values(dataset: &str, wgs84: bool, points: &[(f64, f64)], bands: usize) -> Vec<Vec<f64>> {
+    let mut cmd = Command::new("gdallocationinfo");
+    cmd.arg("-valonly");
+    if wgs84 {
+        cmd.arg("-wgs84");
+    }
+    let mut child = cmd
+        .arg(dataset)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        let mut stdin = child.stdin.take().unwrap();
+        for (x, y) in points {
+            writeln!(stdin, "{x} {y}").unwrap();
+        }
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Vec<f64> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| l.trim().parse().unwrap())
+        .collect();
+    assert_eq!(v.len(), bands * points.len(), "gdallocationinfo gave {v:?}");
+    v.chunks_exact(bands).map(<[f64]>::to_vec).collect()
+}
+
+/// What the PNG set's structure images say for `band` at structure pixel `p`, in the
+/// GeoTIFF's terms (physical units, [`STRUCTURE_NODATA`] for none).
+fn expected(map: &CloudMap, band: StructureBand, p: usize) -> f64 {
+    let s = map.structure.as_ref().unwrap();
+    let nd = STRUCTURE_NODATA as f64;
+    let wind = |k: LayerKind, v: u16| {
+        let l = map.meta.layer(k).unwrap();
+        match l.structure.as_ref().unwrap().wind {
+            true => sample_to_wind(v),
+            false => nd,
+        }
+    };
+    match band {
+        StructureBand::Base(k) => sample_to_altitude(s.base[p][k.channel()]).unwrap_or(nd),
+        StructureBand::Top(k) => sample_to_altitude(s.top[p][k.channel()]).unwrap_or(nd),
+        StructureBand::Type(k) => {
+            CloudType::from_code(s.types[p][k.channel()]).map_or(nd, |t| t.code() as f64)
+        }
+        StructureBand::Source(k) => {
+            unpack_source(s.types[p][3], k.channel()).map_or(nd, |x| x as u8 as f64)
+        }
+        StructureBand::WindU(k) => wind(k, s.wind_u[p][k.channel()]),
+        StructureBand::WindV(k) => wind(k, s.wind_v[p][k.channel()]),
+        StructureBand::ConvectiveBase => sample_to_altitude(s.base[p][3]).unwrap_or(nd),
+        StructureBand::ConvectiveTop => sample_to_altitude(s.top[p][3]).unwrap_or(nd),
+    }
+}
+
+/// Float32 values as GDAL prints them against the f64 they were made from.
+fn same(got: f64, want: f64) -> bool {
+    (got - want).abs() <= 1e-6 * want.abs().max(1.0)
+}
+
+/// The structure image of a map of the real sample over `region`: what `gdalinfo` shows, every
+/// band at a spread of pixels equal to the PNG set's structure images, and at `points`
+/// (lat, lon on the structure lattice; lon in the GeoTIFF's continuous convention) base, top,
+/// type and source equal to `stratus probe --json` on the PNG map.
+fn check_structure(region: &str, size: &str, points: &[(f64, f64)]) {
+    let dir = tempfile::tempdir().unwrap();
+    let (map, tif) = ingest_both(dir.path(), region, size);
+    let sg = map.structure.as_ref().unwrap().grid;
+    let page = format!("GTIFF_DIR:2:{}", tif.display());
+    // The file lists it; the coverage stays the default dataset, its four bands as they were.
+    let info = gdalinfo(&tif);
+    assert_eq!(info["bands"].as_array().unwrap().len(), 4);
+    assert_eq!(info["metadata"]["SUBDATASETS"]["SUBDATASET_2_NAME"], page);
+    let info = gdalinfo(Path::new(&page));
+    assert_eq!(info["size"], serde_json::json!([sg.width, sg.height]));
+    assert_eq!(info["metadata"][""]["AREA_OR_POINT"], "Point");
+    assert!(info["metadata"][""]["STRATUS_STRUCTURE"]
+        .as_str()
+        .unwrap()
+        .contains("lattice"));
+    let wkt = info["coordinateSystem"]["wkt"].as_str().unwrap();
+    assert!(wkt.contains("ID[\"EPSG\",4326]"), "{wkt}");
+    // Pixel-is-point: GDAL's pixel (i, j) is centred on lattice point (i, j); longitudes in
+    // the coverage's convention (west in [-180, 180), continuous eastward).
+    let west = (map.meta.region.west + 180.0).rem_euclid(360.0) - 180.0;
+    let shift = west - map.meta.region.west;
+    let gt: Vec<f64> = info["geoTransform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let want = [
+        sg.west + shift - sg.dlon / 2.0,
+        sg.dlon,
+        0.0,
+        sg.north + sg.dlat / 2.0,
+        0.0,
+        -sg.dlat,
+    ];
+    assert!(
+        gt.iter().zip(&want).all(|(a, b)| close(*a, *b)),
+        "geoTransform {gt:?}, want {want:?}"
+    );
+    let kinds: Vec<LayerKind> = map.meta.layers.iter().map(|l| l.kind).collect();
+    let layout = StructureBand::of_layers(&kinds);
+    let bands = info["bands"].as_array().unwrap();
+    assert_eq!(bands.len(), layout.len());
+    for (b, l) in bands.iter().zip(&layout) {
+        assert_eq!(b["type"], "Float32");
+        assert_eq!(b["block"], serde_json::json!([256, 256]));
+        assert_eq!(b["description"], l.description());
+        assert_eq!(b["noDataValue"].as_f64(), Some(STRUCTURE_NODATA as f64));
+        match l.unit() {
+            "" => assert!(b["metadata"][""]["CODES"].as_str().unwrap().contains("1=")),
+            u => assert_eq!(b["unit"], u),
+        }
+    }
+    // Every band at a spread of pixels (corners among them): the PNG set's values.
+    let (w, h) = (sg.width as usize, sg.height as usize);
+    let mut px: Vec<usize> = (0..w * h).step_by(37).collect();
+    px.extend([w - 1, (h - 1) * w, w * h - 1]);
+    let at: Vec<(f64, f64)> = px
+        .iter()
+        .map(|&p| ((p % w) as f64 + 0.5, (p / w) as f64 + 0.5))
+        .collect();
+    let got = float_values(&page, false, &at, layout.len());
+    let mut with_value = vec![0; layout.len()];
+    for (&p, g) in px.iter().zip(&got) {
+        for (c, (&b, &v)) in layout.iter().zip(g).enumerate() {
+            let e = expected(&map, b, p);
+            assert!(same(v, e), "{b:?} at pixel {p}: {v}, PNG set {e}");
+            with_value[c] += usize::from(v != STRUCTURE_NODATA as f64);
+        }
+    }
+    // Every band holds values (the real sample has winds and convection in these regions).
+    for (b, n) in layout.iter().zip(&with_value) {
+        assert!(*n > 0, "{b:?} is nodata at every pixel read");
+    }
+    // At lattice points, by lat/lon: the probe's base, top, type and source.
+    let lonlat: Vec<(f64, f64)> = points.iter().map(|&(lat, lon)| (lon, lat)).collect();
+    let got = float_values(&page, true, &lonlat, layout.len());
+    let mut compared = 0;
+    for (&(lat, lon), g) in points.iter().zip(&got) {
+        let o = stratus(&[
+            "probe",
+            "--map",
+            tif.with_extension("json").to_str().unwrap(),
+            "--at",
+            &format!("{lat},{lon}"),
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let probe: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let value = |b: StructureBand| g[layout.iter().position(|&x| x == b).unwrap()];
+        for (l, pl) in map
+            .meta
+            .layers
+            .iter()
+            .zip(probe["layers"].as_array().unwrap())
+        {
+            let k = l.kind;
+            assert_eq!(pl["kind"], k.name());
+            // The probe gives base, top and type where the layer has cloud; the GeoTIFF gives
+            // them wherever the layer exists.
+            if let Some(base) = pl["base_m"].as_f64() {
+                let top = pl["top_m"].as_f64().unwrap();
+                assert!(
+                    same(value(StructureBand::Base(k)), base)
+                        && same(value(StructureBand::Top(k)), top),
+                    "{lat},{lon} {}: GeoTIFF {} / {}, probe {base} / {top}",
+                    k.name(),
+                    value(StructureBand::Base(k)),
+                    value(StructureBand::Top(k))
+                );
+                let ty = CloudType::from_code(value(StructureBand::Type(k)) as u8).unwrap();
+                assert_eq!(pl["type"], ty.name(), "{lat},{lon} {}", k.name());
+                compared += 1;
+            }
+            let source = match value(StructureBand::Source(k)) as u8 {
+                1 => "gfs-layer",
+                2 => "rh-column",
+                _ => l.altitude_source.name(),
+            };
+            assert_eq!(pl["source"], source, "{lat},{lon} {}", k.name());
+        }
+    }
+    assert!(compared >= 3, "only {compared} cloudy layers compared");
+}
+
+#[test]
+fn the_structure_is_a_second_image_that_agrees_with_probe() {
+    if !gdal("the_structure_is_a_second_image_that_agrees_with_probe") {
+        return;
+    }
+    // North Atlantic: the convective tower at 50°N 25°W (docs/ingest.md's ecCodes table),
+    // other 2.5° grid points, and lattice points between grid lines (k = 7 a cell here).
+    let d = 2.5 / 7.0;
+    check_structure(
+        "30,65,-60,10",
+        "600x300",
+        &[
+            (50.0, -25.0),
+            (45.0, -5.0),
+            (60.0, -40.0),
+            (40.0, -30.0),
+            (50.0 + 3.0 * d, -25.0 + 2.0 * d),
+            (35.0 + d, 5.0 - 4.0 * d),
+        ],
+    );
+}
+
+#[test]
+fn a_dateline_structure_keeps_continuous_longitudes() {
+    if !gdal("a_dateline_structure_keeps_continuous_longitudes") {
+        return;
+    }
+    // 150°E..150°W: lattice longitudes run on past 180 as the coverage's do.
+    let d = 2.5 / 7.0;
+    check_structure(
+        "10,50,150,-150",
+        "300x200",
+        &[
+            (30.0, 190.0),
+            (40.0, 175.0),
+            (20.0, 180.0),
+            (15.0 + d, 200.0 - 3.0 * d),
+        ],
+    );
+}
+
+#[test]
+fn an_rh_only_file_gives_the_coverage_bands_alone() {
+    if !gdal("an_rh_only_file_gives_the_coverage_bands_alone") {
+        return;
+    }
+    let rh = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
+    let dir = tempfile::tempdir().unwrap();
+    let tif = dir.path().join("rh.tif");
+    let o = stratus(&[
+        "ingest",
+        rh.to_str().unwrap(),
+        "--level",
+        "0.7",
+        "--region",
+        "-60,60,-180,180",
+        "--size",
+        "600x300",
+        "--out",
+        tif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info = gdalinfo(&tif);
+    assert_eq!(info["bands"].as_array().unwrap().len(), 4);
+    assert!(
+        info["metadata"]["SUBDATASETS"].is_null(),
+        "{}",
+        info["metadata"]
+    );
+    let meta: Value =
+        serde_json::from_str(info["metadata"][""]["STRATUS_CLOUDMAP"].as_str().unwrap()).unwrap();
+    assert!(meta["source"]["fields"].is_null(), "{}", meta["source"]);
+    // Only the coverage image and its overviews: one IFD each, chained from offset 8.
+    let bytes = std::fs::read(&tif).unwrap();
+    let u32_at = |a: usize| u32::from_le_bytes(bytes[a..a + 4].try_into().unwrap()) as usize;
+    let (mut at, mut ifds) = (u32_at(4), 0);
+    while at != 0 {
+        let n = u16::from_le_bytes([bytes[at], bytes[at + 1]]) as usize;
+        at = u32_at(at + 2 + 12 * n);
+        ifds += 1;
+    }
+    assert_eq!(ifds, pyramid(600, 300).len());
 }

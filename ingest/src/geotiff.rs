@@ -23,6 +23,10 @@
 //!   `GeographicTypeGeoKey` = 4326 (WGS 84);
 //! - `GDAL_METADATA` (tag 42112): band descriptions, scale 1/65535 (so GDAL users can read
 //!   coverage fractions), and dataset items given by the caller.
+//! - optionally a second image ([`PageSpec`], `page.rs`): Float32 bands on their own lattice
+//!   (the map's structure), second in the IFD chain and its tiles first after the IFDs. One
+//!   TIFF image has one sample type and GDAL one nodata value per image, so it cannot be more
+//!   bands of the coverage image; without it the file is exactly what it was before pages.
 //!
 //! Longitudes stay continuous: the west edge is taken into [-180, 180) and the east edge is
 //! west + span, so a region across the date line (`150..-150`) is written as 150..210.
@@ -36,6 +40,10 @@ use std::io::Write;
 use rayon::prelude::*;
 
 use crate::region::Region;
+
+mod page;
+use page::Page;
+pub use page::{PageBand, PageSpec};
 
 /// Tile side, in pixels (both directions).
 pub const TILE: u32 = 256;
@@ -67,8 +75,10 @@ const SAMPLE_FORMAT: u16 = 339;
 const MODEL_PIXEL_SCALE: u16 = 33550;
 const MODEL_TIEPOINT: u16 = 33922;
 const GEO_KEY_DIRECTORY: u16 = 34735;
-// GDAL's private tag: XML metadata (band descriptions, scale, dataset items).
+// GDAL's private tags: XML metadata (band descriptions, scale, dataset items), and the
+// nodata value as text.
 const GDAL_METADATA: u16 = 42112;
+const GDAL_NODATA: u16 = 42113;
 
 // GeoKeys (OGC 19-008r4, §7.1.4 and annex).
 const GT_MODEL_TYPE: u16 = 1024;
@@ -99,6 +109,12 @@ pub enum GeoTiffError {
     PartialRow(usize),
     #[error("the GeoTIFF would be {0} bytes, past classic TIFF's 4 GiB")]
     TooLarge(u64),
+    #[error("a page of {0} bands (1..=256 can be written)")]
+    BadBands(usize),
+    #[error("rows pushed for a page the file does not have")]
+    NoPage,
+    #[error("the structure page: {0}")]
+    Page(Box<GeoTiffError>),
     #[error("{0}")]
     Io(#[from] std::io::Error),
 }
@@ -178,6 +194,7 @@ impl Level {
 pub struct GeoTiffWriter {
     spec: GeoTiffSpec,
     levels: Vec<Level>,
+    page: Option<Page>,
 }
 
 impl GeoTiffWriter {
@@ -201,7 +218,29 @@ impl GeoTiffWriter {
                 pending: None,
             })
             .collect();
-        Ok(GeoTiffWriter { spec, levels })
+        Ok(GeoTiffWriter {
+            spec,
+            levels,
+            page: None,
+        })
+    }
+
+    /// Give the file a second image ([`PageSpec`]): Float32 bands on their own lattice, after
+    /// the coverage image in the IFD chain (GDAL's `GTIFF_DIR:2:FILE`). Its rows are pushed
+    /// with [`GeoTiffWriter::push_page_rows`].
+    pub fn add_page(&mut self, spec: PageSpec) -> Result<(), GeoTiffError> {
+        self.page = Some(Page::new(spec).map_err(|e| GeoTiffError::Page(Box::new(e)))?);
+        Ok(())
+    }
+
+    /// Add whole rows of the page (row-major, the bands of each pixel together, rows in order
+    /// from the north).
+    pub fn push_page_rows(&mut self, values: &[f32]) -> Result<(), GeoTiffError> {
+        self.page
+            .as_mut()
+            .ok_or(GeoTiffError::NoPage)?
+            .push_rows(values)
+            .map_err(|e| GeoTiffError::Page(Box::new(e)))
     }
 
     /// Add whole rows (row-major texels, rows in order from the north).
@@ -242,24 +281,35 @@ impl GeoTiffWriter {
                 push_row(&mut self.levels, k + 1, down, deflate);
             }
         }
+        if let Some(p) = &mut self.page {
+            p.seal().map_err(|e| GeoTiffError::Page(Box::new(e)))?;
+        }
         let xml = gdal_metadata(&self.spec.band_names, metadata);
-        let ifds: Vec<Ifd> = (0..self.levels.len()).map(|k| self.ifd(k, &xml)).collect();
-        // Where everything goes: IFDs (each followed by its values) from offset 8, then tiles
-        // of the smallest image first.
+        // The IFD chain: full resolution, the page (so GDAL numbers it 2 whatever the
+        // overviews), then the overviews large to small. Tile data: the page's first (small,
+        // and a client streaming by range gets it early), then the smallest overview's, full
+        // resolution last.
+        let mut images: Vec<(Ifd, &[Vec<u8>])> = (0..self.levels.len())
+            .map(|k| (self.ifd(k, &xml), self.levels[k].tiles.as_slice()))
+            .collect();
+        if let Some(p) = &self.page {
+            images.insert(1, (p.ifd(), p.tiles.as_slice()));
+        }
+        let page_at = self.page.as_ref().map(|_| 1);
+        let data_order: Vec<usize> = page_at
+            .into_iter()
+            .chain((0..images.len()).rev().filter(|&i| Some(i) != page_at))
+            .collect();
         let mut at = 8u64;
-        let mut ifd_at = Vec::with_capacity(ifds.len());
-        for ifd in &ifds {
+        let mut ifd_at = Vec::with_capacity(images.len());
+        for (ifd, _) in &images {
             ifd_at.push(at);
             at += ifd.size();
         }
-        let mut tiles_at = vec![0u64; self.levels.len()];
-        for k in (0..self.levels.len()).rev() {
-            tiles_at[k] = at;
-            at += self.levels[k]
-                .tiles
-                .iter()
-                .map(|t| t.len() as u64)
-                .sum::<u64>();
+        let mut tiles_at = vec![0u64; images.len()];
+        for &i in &data_order {
+            tiles_at[i] = at;
+            at += images[i].1.iter().map(|t| t.len() as u64).sum::<u64>();
         }
         if at > u32::MAX as u64 {
             return Err(GeoTiffError::TooLarge(at));
@@ -267,23 +317,20 @@ impl GeoTiffWriter {
         w.write_all(b"II")?;
         w.write_all(&42u16.to_le_bytes())?;
         w.write_all(&8u32.to_le_bytes())?;
-        for (k, ifd) in ifds.into_iter().enumerate() {
-            let mut offsets = Vec::with_capacity(self.levels[k].tiles.len());
-            let mut o = tiles_at[k];
-            for t in &self.levels[k].tiles {
+        let tiles: Vec<&[Vec<u8>]> = images.iter().map(|(_, t)| *t).collect();
+        for (i, (ifd, t)) in images.into_iter().enumerate() {
+            let mut offsets = Vec::with_capacity(t.len());
+            let mut o = tiles_at[i];
+            for tile in t {
                 offsets.push(o as u32);
-                o += t.len() as u64;
+                o += tile.len() as u64;
             }
-            let counts: Vec<u32> = self.levels[k]
-                .tiles
-                .iter()
-                .map(|t| t.len() as u32)
-                .collect();
-            let next = ifd_at.get(k + 1).copied().unwrap_or(0) as u32;
-            ifd.write(w, ifd_at[k] as u32, &offsets, &counts, next)?;
+            let counts: Vec<u32> = t.iter().map(|t| t.len() as u32).collect();
+            let next = ifd_at.get(i + 1).copied().unwrap_or(0) as u32;
+            ifd.write(w, ifd_at[i] as u32, &offsets, &counts, next)?;
         }
-        for k in (0..self.levels.len()).rev() {
-            for t in &self.levels[k].tiles {
+        for &i in &data_order {
+            for t in tiles[i] {
                 w.write_all(t)?;
             }
         }
@@ -436,6 +483,11 @@ fn encode_tile(tile: &mut [[u16; 4]], deflate: bool) -> Vec<u8> {
     if !deflate {
         return raw;
     }
+    deflate_bytes(&raw)
+}
+
+/// `raw` as one zlib stream.
+fn deflate_bytes(raw: &[u8]) -> Vec<u8> {
     // Level 6, zlib's and GDAL's default: measured (docs/ingest.md) 40 % smaller than level 1
     // on a regional map, at 2.5-3x the time; a COG is written once and served many times.
     let mut z = flate2::write::ZlibEncoder::new(
@@ -443,7 +495,7 @@ fn encode_tile(tile: &mut [[u16; 4]], deflate: bool) -> Vec<u8> {
         flate2::Compression::new(6),
     );
     // Writing to a Vec cannot fail.
-    let _ = z.write_all(&raw);
+    let _ = z.write_all(raw);
     z.finish().unwrap_or_default()
 }
 

@@ -16,7 +16,7 @@ use crate::cloudmap::{
 use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, RhLevel};
-use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter};
+use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter, PageBand, PageSpec};
 use crate::meta::{
     AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
     StructureGrid, FORMAT,
@@ -24,7 +24,7 @@ use crate::meta::{
 use crate::output::{check_output, ensure_not_input, write_atomic, write_set, ExtraWriter};
 use crate::region::Region;
 use crate::spline::{Interp, Tap, WRAP_PAD};
-use crate::structure::structure_grid;
+use crate::structure::{structure_grid, StructureBand, STRUCTURE_NODATA};
 use crate::weather::pixels::{PixelSampler, Placement, StructureStats};
 use crate::weather::{GridStructure, LayerSpec, WeatherInputs};
 
@@ -401,8 +401,9 @@ impl Plan {
     /// COG layout, EPSG:4326), written atomically ([`crate::output::write_atomic`]); it may
     /// not be the forecast file read. No sidecar is written: the sidecar's content (layers,
     /// times, source) is carried in the file as the GDAL metadata item `STRATUS_CLOUDMAP`.
-    /// Returns that metadata, coverage statistics filled in. `progress` is called with the
-    /// number of rows done.
+    /// When the forecast held more than RH, the structure follows as a second image
+    /// ([`Plan::geotiff_structure`]). Returns that metadata, coverage statistics filled in.
+    /// `progress` is called with the number of coverage rows done.
     pub fn write_geotiff(
         &self,
         tif_path: &Path,
@@ -427,9 +428,30 @@ impl Plan {
             deflate: true,
         };
         let bands = self.bands(self.height);
+        let structure = self.geotiff_structure();
         let mut done_meta = None;
         write_atomic(tif_path, |w| {
             let mut gt = GeoTiffWriter::new(spec).map_err(|e| e.to_string())?;
+            if let Some((page, layout)) = &structure {
+                gt.add_page(page.clone()).map_err(|e| e.to_string())?;
+                let rows = self.bands(page.height as usize);
+                for chunk in rows.chunks(rayon::current_num_threads().max(1) * 2) {
+                    let parts: Vec<Vec<f32>> = chunk
+                        .par_iter()
+                        .map(|&(a, b)| {
+                            let mut v = Vec::new();
+                            for j in a..b {
+                                self.sampler
+                                    .append_physical_row(layout, j, page.nodata, &mut v);
+                            }
+                            v
+                        })
+                        .collect();
+                    for p in parts {
+                        gt.push_page_rows(&p).map_err(|e| e.to_string())?;
+                    }
+                }
+            }
             let mut done = 0;
             let mut st = Stats::default();
             for chunk in bands.chunks(rayon::current_num_threads().max(1) * 2) {
@@ -453,6 +475,55 @@ impl Plan {
             Ok(())
         })?;
         done_meta.ok_or_else(|| IngestError::write(tif_path, "nothing was written"))
+    }
+
+    /// The GeoTIFF's structure image and its bands, when the forecast held more than RH
+    /// (`source.fields`): the structure images' lattice and values, decoded to physical units
+    /// (docs/ingest.md, "GeoTIFF"). From RH alone the structure says little the coverage and
+    /// the layers' bands do not (RH-column crossings on the standard atmosphere, each layer's
+    /// default type, no wind), and the file stays the four coverage bands.
+    pub fn geotiff_structure(&self) -> Option<(PageSpec, Vec<StructureBand>)> {
+        if self.meta.source.fields.is_empty() {
+            return None;
+        }
+        let kinds: Vec<LayerKind> = self.meta.layers.iter().map(|l| l.kind).collect();
+        let layout = StructureBand::of_layers(&kinds);
+        let g = self.sampler.lattice();
+        let r = &self.meta.region;
+        // The coverage image's longitudes, shifted by whole turns into [-180, 180) at the
+        // region's west edge; the lattice moves with them.
+        let shift = GeoRef::of_region(r, 1, 1).west - r.west;
+        let bands = layout
+            .iter()
+            .map(|b| PageBand {
+                description: b.description(),
+                unit: b.unit().into(),
+                items: b
+                    .codes()
+                    .map(|c| vec![("CODES".to_string(), c)])
+                    .unwrap_or_default(),
+            })
+            .collect();
+        let page = PageSpec {
+            width: g.width,
+            height: g.height,
+            georef: GeoRef {
+                west: g.west + shift,
+                north: g.north,
+                dx: g.dlon,
+                dy: g.dlat,
+            },
+            bands,
+            nodata: STRUCTURE_NODATA,
+            metadata: vec![(
+                "STRATUS_STRUCTURE".into(),
+                "cloud structure of the coverage map (GTIFF_DIR:1): point samples on the \
+                 forecast grid's lattice; read base, top and wind bilinear, type and source \
+                 at the nearest pixel; altitudes in m above mean sea level"
+                    .into(),
+            )],
+        };
+        Some((page, layout))
     }
 
     pub fn height(&self) -> usize {
@@ -630,6 +701,95 @@ fn layer_specs(meta: &CloudMapMeta) -> Vec<LayerSpec> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A plan over the fixture's 6×5-point grid, from `fields`.
+    fn fixture_plan(dir: &Path, fields: &[crate::encode::Grib2Field]) -> Plan {
+        let grib = dir.join("f.grib2");
+        std::fs::write(&grib, crate::encode::encode_file(fields)).unwrap();
+        let fc = Forecast::open(&grib, crate::forecast::LevelSelect::AllBelow(100.0)).unwrap();
+        let opts = IngestOptions {
+            region: Region::parse("46.5,49.5,10.5,14.5").unwrap(),
+            width: 40,
+            height: 30,
+            rh_cr: [0.3; 3],
+            interp: Interp::Spline,
+        };
+        Plan::new(&fc, &opts).unwrap()
+    }
+
+    #[test]
+    fn the_geotiff_structure_is_the_images_decoded_and_needs_more_than_rh() {
+        use crate::encode::{fixtures, param};
+        use crate::structure::{sample_to_altitude, sample_to_wind, unpack_source};
+        use crate::weather::CloudType;
+        let dir = tempfile::tempdir().unwrap();
+        let all = fixtures::valid_rh_fields();
+        let plan = fixture_plan(dir.path(), &all);
+        let (page, layout) = plan
+            .geotiff_structure()
+            .expect("RH + gh has a structure page");
+        let kinds: Vec<LayerKind> = plan.meta.layers.iter().map(|l| l.kind).collect();
+        assert_eq!(layout, StructureBand::of_layers(&kinds));
+        assert_eq!(layout.len(), 6 * kinds.len() + 2);
+        assert_eq!(page.bands.len(), layout.len());
+        let g = plan.structure_grid();
+        assert_eq!((page.width, page.height), (g.width, g.height));
+        assert_eq!(
+            (
+                page.georef.west,
+                page.georef.north,
+                page.georef.dx,
+                page.georef.dy
+            ),
+            (g.west, g.north, g.dlon, g.dlat)
+        );
+        assert_eq!(page.bands[0].unit, "m");
+        // Every pixel of every band: the structure images' samples, decoded.
+        let ms = plan.build().structure.unwrap();
+        let nd = STRUCTURE_NODATA;
+        let m = |v: Option<f64>| v.map_or(nd, |v| v as f32);
+        let mut with_value = 0;
+        for j in 0..g.height as usize {
+            let mut row = Vec::new();
+            plan.sampler.append_physical_row(&layout, j, nd, &mut row);
+            assert_eq!(row.len(), g.width as usize * layout.len());
+            for (i, px) in row.chunks_exact(layout.len()).enumerate() {
+                let p = j * g.width as usize + i;
+                for (&b, &got) in layout.iter().zip(px) {
+                    let want = match b {
+                        StructureBand::Base(k) => m(sample_to_altitude(ms.base[p][k.channel()])),
+                        StructureBand::Top(k) => m(sample_to_altitude(ms.top[p][k.channel()])),
+                        StructureBand::Type(k) => {
+                            m(CloudType::from_code(ms.types[p][k.channel()])
+                                .map(|t| t.code() as f64))
+                        }
+                        StructureBand::Source(k) => {
+                            m(unpack_source(ms.types[p][3], k.channel()).map(|s| s as u8 as f64))
+                        }
+                        // The fixture has no wind: none, not the images' 0 m/s.
+                        StructureBand::WindU(k) | StructureBand::WindV(k) => {
+                            assert!(plan.sampler.winds[k.channel()].is_none());
+                            assert_eq!(sample_to_wind(ms.wind_u[p][k.channel()]), 0.0);
+                            nd
+                        }
+                        StructureBand::ConvectiveBase => m(sample_to_altitude(ms.base[p][3])),
+                        StructureBand::ConvectiveTop => m(sample_to_altitude(ms.top[p][3])),
+                    };
+                    assert_eq!(got.to_bits(), want.to_bits(), "{b:?} at ({i}, {j})");
+                    with_value += usize::from(got != nd);
+                }
+            }
+        }
+        assert!(with_value > 0);
+        // RH alone (no gh): no structure page, so the file stays the coverage bands.
+        let rh: Vec<_> = all
+            .into_iter()
+            .filter(|f| (f.category, f.number) == (param::RH.1, param::RH.2))
+            .collect();
+        let plan = fixture_plan(dir.path(), &rh);
+        assert!(plan.meta.source.fields.is_empty());
+        assert!(plan.geotiff_structure().is_none());
+    }
 
     #[test]
     fn coverage_formula_at_its_edges() {

@@ -21,6 +21,9 @@
 //! a few pixels per grid cell hold it exactly, where the coverage needs the map's full
 //! resolution. Readers sample them by lat/lon (the sidecar's `structure_grid`): bilinear for
 //! base, top and wind, nearest pixel for type and source.
+//!
+//! A GeoTIFF map carries the same pixels decoded to physical units, one Float32 band per
+//! layer and quantity ([`StructureBand`]), in its second image (`crate::geotiff::PageSpec`).
 
 use serde::Serialize;
 
@@ -139,6 +142,93 @@ pub fn wind_to_sample(ms: f64) -> u16 {
 
 pub fn sample_to_wind(v: u16) -> f64 {
     (v as f64 - 32768.0) / 100.0
+}
+
+/// The value a GeoTIFF structure band holds where it has none (GDAL's nodata).
+pub const STRUCTURE_NODATA: f32 = -9999.0;
+
+/// One band of a GeoTIFF's structure image, in physical units: the structure images' samples
+/// decoded ([`STRUCTURE_NODATA`] where they hold none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StructureBand {
+    /// Cloud base, m above mean sea level.
+    Base(LayerKind),
+    /// Cloud top, m above mean sea level.
+    Top(LayerKind),
+    /// [`CloudType`] code, 1..=10.
+    Type(LayerKind),
+    /// [`PointSource`] code of the base and top: 1 GFS layer, 2 RH column, 3 the band.
+    Source(LayerKind),
+    /// Layer-mean eastward wind, m/s.
+    WindU(LayerKind),
+    /// Layer-mean northward wind, m/s.
+    WindV(LayerKind),
+    /// GFS's convective cloud base and top, m above mean sea level.
+    ConvectiveBase,
+    ConvectiveTop,
+}
+
+impl StructureBand {
+    /// The bands of a map with `layers`, in band order: per layer base, top, type, source,
+    /// wind u, wind v; then the convective cloud's base and top.
+    pub fn of_layers(layers: &[LayerKind]) -> Vec<StructureBand> {
+        let mut v = Vec::with_capacity(6 * layers.len() + 2);
+        for &k in layers {
+            v.extend([
+                StructureBand::Base(k),
+                StructureBand::Top(k),
+                StructureBand::Type(k),
+                StructureBand::Source(k),
+                StructureBand::WindU(k),
+                StructureBand::WindV(k),
+            ]);
+        }
+        v.extend([StructureBand::ConvectiveBase, StructureBand::ConvectiveTop]);
+        v
+    }
+
+    /// GDAL's band description.
+    pub fn description(self) -> String {
+        match self {
+            StructureBand::Base(k) => format!("{} cloud base", k.name()),
+            StructureBand::Top(k) => format!("{} cloud top", k.name()),
+            StructureBand::Type(k) => format!("{} cloud type (code)", k.name()),
+            StructureBand::Source(k) => format!("{} cloud base/top source (code)", k.name()),
+            StructureBand::WindU(k) => format!("{} layer wind u (eastward)", k.name()),
+            StructureBand::WindV(k) => format!("{} layer wind v (northward)", k.name()),
+            StructureBand::ConvectiveBase => "convective cloud base".into(),
+            StructureBand::ConvectiveTop => "convective cloud top".into(),
+        }
+    }
+
+    /// GDAL's unit type; empty for codes.
+    pub fn unit(self) -> &'static str {
+        match self {
+            StructureBand::Type(_) | StructureBand::Source(_) => "",
+            StructureBand::WindU(_) | StructureBand::WindV(_) => "m/s",
+            _ => "m",
+        }
+    }
+
+    /// The code table of a code band, as text (`1=cirrus, 2=…`).
+    pub fn codes(self) -> Option<String> {
+        match self {
+            StructureBand::Type(_) => Some(
+                CloudType::ALL
+                    .iter()
+                    .map(|t| format!("{}={}", t.code(), t.name()))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ),
+            StructureBand::Source(_) => Some(format!(
+                "{}=gfs-layer, {}=rh-column, {}=band (the layer's altitude band)",
+                PointSource::GfsLayer as u8,
+                PointSource::RhColumn as u8,
+                PointSource::Band as u8
+            )),
+            _ => None,
+        }
+    }
 }
 
 /// Sources of the three layers packed into the type image's alpha.

@@ -363,3 +363,250 @@ fn wrong_row_counts_are_errors() {
     assert!(GeoTiffWriter::new(spec(0, 3, true)).is_err());
     assert!(GeoTiffWriter::new(spec(8193, 3, true)).is_err());
 }
+
+/// A page of `n` bands: ramps, negative and fractional values, and nodata patches.
+fn page_pattern(w: usize, h: usize, n: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(w * h * n);
+    for y in 0..h {
+        for x in 0..w {
+            for b in 0..n {
+                v.push(match b % 3 {
+                    _ if (x + 3 * y + b) % 17 == 0 => -9999.0,
+                    0 => 250.0 + 0.5 * (x * 7 + y * 3) as f32,
+                    1 => (x as f32 - y as f32) * 0.01 - 3.25,
+                    _ => ((x * y + b) % 11) as f32,
+                });
+            }
+        }
+    }
+    v
+}
+
+fn page_spec(w: u32, h: u32, n: usize) -> PageSpec {
+    PageSpec {
+        width: w,
+        height: h,
+        georef: GeoRef {
+            west: 149.9,
+            north: 50.1,
+            dx: 0.25,
+            dy: 0.5,
+        },
+        bands: (0..n)
+            .map(|b| PageBand {
+                description: format!("band {b} <x>"),
+                unit: if b == 1 { String::new() } else { "m".into() },
+                items: vec![("CODES".into(), format!("1=a & {b}"))],
+            })
+            .collect(),
+        nodata: -9999.0,
+        metadata: vec![("STRATUS_PAGE".into(), "page".into())],
+    }
+}
+
+/// Decode a page's pixels (Float32, planar, predictor 3, Deflate) into pixel-interleaved order.
+fn read_page(file: &[u8], tags: &Tags) -> (usize, usize, Vec<f32>) {
+    let (w, h) = (
+        int(tags, IMAGE_WIDTH) as usize,
+        int(tags, IMAGE_LENGTH) as usize,
+    );
+    let n = int(tags, SAMPLES_PER_PIXEL) as usize;
+    let t = TILE as usize;
+    assert_eq!(int(tags, COMPRESSION), 8);
+    assert_eq!(int(tags, PREDICTOR), 3);
+    let offsets = ints(tags, TILE_OFFSETS);
+    let counts = ints(tags, TILE_BYTE_COUNTS);
+    let across = w.div_ceil(t);
+    let per_band = across * h.div_ceil(t);
+    assert_eq!(offsets.len(), per_band * n);
+    let mut px = vec![f32::NAN; w * h * n];
+    for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
+        let mut raw = Vec::new();
+        flate2::read::ZlibDecoder::new(&file[o as usize..(o + c) as usize])
+            .read_to_end(&mut raw)
+            .unwrap();
+        assert_eq!(raw.len(), t * t * 4, "tile {i} is not a whole tile");
+        let tile = page::decode_float_tile(&raw, 1);
+        let (band, k) = (i / per_band, i % per_band);
+        let (tx, ty) = (k % across, k / across);
+        for y in 0..t {
+            for x in 0..t {
+                let (gx, gy) = (tx * t + x, ty * t + y);
+                if gx < w && gy < h {
+                    px[(gy * w + gx) * n + band] = tile[y * t + x];
+                } else {
+                    assert_eq!(tile[y * t + x], 0.0, "padding");
+                }
+            }
+        }
+    }
+    (w, h, px)
+}
+
+#[test]
+fn a_page_follows_the_main_image_and_reads_back() {
+    let (w, h) = (600, 300);
+    let px = pattern(w, h);
+    let plain = write(w as u32, h as u32, &px, true);
+    for (pw, ph, n) in [(300, 280, 5), (1, 1, 1), (257, 3, 20)] {
+        let values = page_pattern(pw, ph, n);
+        let mut g = GeoTiffWriter::new(spec(w as u32, h as u32, true)).unwrap();
+        g.add_page(page_spec(pw as u32, ph as u32, n)).unwrap();
+        // Page rows in uneven batches, interleaved with the coverage's.
+        let mut pj = 0;
+        for (k, rows) in px.chunks(w * 37).enumerate() {
+            g.push_rows(rows).unwrap();
+            let pj1 = (pj + k % 4 + 1).min(ph);
+            g.push_page_rows(&values[pj * pw * n..pj1 * pw * n])
+                .unwrap();
+            pj = pj1;
+        }
+        g.push_page_rows(&values[pj * pw * n..]).unwrap();
+        let mut file = Vec::new();
+        g.finish(&mut file, &[("STRATUS_TEST", "a<b & \"c\"")])
+            .unwrap();
+        let ifds = read_ifds(&file);
+        // Chain: full resolution, the page (GDAL's GTIFF_DIR:2), then the overviews.
+        let sizes: Vec<(u64, u64)> = ifds
+            .iter()
+            .map(|(_, t)| (int(t, IMAGE_WIDTH), int(t, IMAGE_LENGTH)))
+            .collect();
+        assert_eq!(
+            sizes,
+            [(600, 300), (pw as u64, ph as u64), (300, 150), (150, 75)]
+        );
+        let subfile: Vec<u64> = ifds.iter().map(|(_, t)| int(t, NEW_SUBFILE_TYPE)).collect();
+        assert_eq!(subfile, [0, 0, 1, 1]);
+        let p = &ifds[1].1;
+        assert_eq!(ints(p, BITS_PER_SAMPLE), vec![32; n]);
+        assert_eq!(ints(p, SAMPLE_FORMAT), vec![3; n]);
+        assert_eq!(int(p, SAMPLES_PER_PIXEL), n as u64);
+        assert_eq!(int(p, PHOTOMETRIC), 1);
+        assert_eq!(int(p, PLANAR_CONFIGURATION), 2);
+        if n > 1 {
+            assert_eq!(ints(p, EXTRA_SAMPLES), vec![0; n - 1]);
+        } else {
+            assert!(!p.contains_key(&EXTRA_SAMPLES));
+        }
+        assert_eq!(doubles(p, MODEL_PIXEL_SCALE), [0.25, 0.5, 0.0]);
+        assert_eq!(
+            doubles(p, MODEL_TIEPOINT),
+            [0.0, 0.0, 0.0, 149.9, 50.1, 0.0]
+        );
+        // Pixel-is-point: each pixel is a sample at its tie point's lattice position.
+        assert_eq!(
+            ints(p, GEO_KEY_DIRECTORY),
+            [1, 1, 1, 4, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326, 2054, 0, 1, 9102]
+        );
+        assert_eq!(p[&GDAL_NODATA].2, b"-9999\0");
+        let xml = String::from_utf8(p[&GDAL_METADATA].2.clone()).unwrap();
+        assert!(
+            xml.contains("<Item name=\"STRATUS_PAGE\">page</Item>"),
+            "{xml}"
+        );
+        assert!(xml.contains(
+            "<Item name=\"DESCRIPTION\" sample=\"0\" role=\"description\">band 0 &lt;x&gt;</Item>"
+        ));
+        assert!(xml.contains("<Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item>"));
+        assert!(!xml.contains("<Item name=\"UNITTYPE\" sample=\"1\""));
+        assert!(xml.contains("<Item name=\"CODES\" sample=\"0\">1=a &amp; 0</Item>"));
+        assert!(!p.contains_key(&SOFTWARE));
+        // Data: the page's tiles first, then the smallest overview's … full resolution last,
+        // contiguous, ending the file.
+        let ifd_end = ifds.iter().map(|(o, _)| *o as u64).max().unwrap();
+        let mut expect = ints(p, TILE_OFFSETS)[0];
+        assert!(ifd_end < expect);
+        for k in [1, 3, 2, 0] {
+            let t = &ifds[k].1;
+            for (o, c) in ints(t, TILE_OFFSETS)
+                .into_iter()
+                .zip(ints(t, TILE_BYTE_COUNTS))
+            {
+                assert_eq!(o, expect, "image {k}: tiles not contiguous in order");
+                expect += c;
+            }
+        }
+        assert_eq!(expect, file.len() as u64);
+        // The page's values exactly; the coverage images as without a page, to the byte.
+        let (gw, gh, got) = read_page(&file, p);
+        assert_eq!((gw, gh), (pw, ph));
+        assert!(
+            got.iter()
+                .zip(&values)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "page {pw}x{ph}x{n} differs"
+        );
+        let plain_ifds = read_ifds(&plain);
+        for (a, b) in [(0, 0), (2, 1), (3, 2)] {
+            let tiles = |f: &[u8], t: &Tags| -> Vec<Vec<u8>> {
+                ints(t, TILE_OFFSETS)
+                    .into_iter()
+                    .zip(ints(t, TILE_BYTE_COUNTS))
+                    .map(|(o, c)| f[o as usize..(o + c) as usize].to_vec())
+                    .collect()
+            };
+            assert_eq!(
+                tiles(&file, &ifds[a].1),
+                tiles(&plain, &plain_ifds[b].1),
+                "coverage image {b}"
+            );
+        }
+        assert_eq!(
+            ifds[0].1[&GDAL_METADATA], plain_ifds[0].1[&GDAL_METADATA],
+            "the coverage's metadata changed"
+        );
+    }
+}
+
+#[test]
+fn the_float_predictor_round_trips_any_bits() {
+    let mut r = 0x1234_5678_9abc_def0u64;
+    for n in [1, 3, 20] {
+        let tile: Vec<f32> = (0..TILE as usize * TILE as usize * n)
+            .map(|_| {
+                r ^= r << 13;
+                r ^= r >> 7;
+                r ^= r << 17;
+                f32::from_bits((r >> 32) as u32)
+            })
+            .collect();
+        let z = page::encode_float_tile(&tile, n);
+        let mut raw = Vec::new();
+        flate2::read::ZlibDecoder::new(z.as_slice())
+            .read_to_end(&mut raw)
+            .unwrap();
+        let back = page::decode_float_tile(&raw, n);
+        assert!(tile
+            .iter()
+            .zip(&back)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+}
+
+#[test]
+fn page_errors_are_typed() {
+    let mut g = GeoTiffWriter::new(spec(10, 3, true)).unwrap();
+    assert!(matches!(
+        g.push_page_rows(&[0.0; 4]),
+        Err(GeoTiffError::NoPage)
+    ));
+    let e = g.add_page(page_spec(4, 2, 0)).unwrap_err();
+    assert!(
+        matches!(&e, GeoTiffError::Page(b) if matches!(**b, GeoTiffError::BadBands(0))),
+        "{e}"
+    );
+    assert!(g.add_page(page_spec(0, 2, 1)).is_err());
+    g.add_page(page_spec(4, 2, 2)).unwrap();
+    assert!(matches!(
+        g.push_page_rows(&[0.0; 7]),
+        Err(GeoTiffError::Page(_))
+    ));
+    g.push_page_rows(&[0.0; 8]).unwrap();
+    g.push_rows(&[[0; 4]; 30]).unwrap();
+    let e = g.finish(&mut Vec::new(), &[]).unwrap_err();
+    assert!(
+        matches!(&e, GeoTiffError::Page(b) if matches!(**b, GeoTiffError::MissingRows { pushed: 1, height: 2 })),
+        "{e}"
+    );
+    assert_eq!(e.to_string(), "the structure page: 1 of 2 rows were pushed");
+}

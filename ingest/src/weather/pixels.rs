@@ -7,7 +7,10 @@
 
 use crate::meta::{AltitudeSource, ExtraRole, LayerStructure, StructureGrid};
 use crate::region::Region;
-use crate::structure::{altitude_to_sample, pack_sources, wind_to_sample, MapStructure};
+use crate::structure::{
+    altitude_to_sample, pack_sources, sample_to_altitude, sample_to_wind, unpack_source,
+    wind_to_sample, MapStructure, StructureBand,
+};
 
 use super::grid::GridStructure;
 use super::inputs::Grid32;
@@ -308,6 +311,45 @@ impl PixelSampler {
                         out.extend_from_slice(&s.to_be_bytes());
                     }
                 }
+            }
+        }
+    }
+
+    /// Append row `j` of a GeoTIFF's structure image to `out`: per pixel the value of each of
+    /// `bands` in physical units, `nodata` where there is none. The values are the structure
+    /// images' samples decoded, so the GeoTIFF and the PNG set say the same (a layer without a
+    /// wind field, which the images hold as 0 m/s, is `nodata` here).
+    pub fn append_physical_row(
+        &self,
+        bands: &[StructureBand],
+        j: usize,
+        nodata: f32,
+        out: &mut Vec<f32>,
+    ) {
+        let m = |v: Option<f64>| v.map_or(nodata, |v| v as f32);
+        for i in 0..self.width {
+            let (base, top) = (self.heights(i, j, false), self.heights(i, j, true));
+            let types = self.types(i, j);
+            let (u, v) = (self.wind(i, j, false), self.wind(i, j, true));
+            for &b in bands {
+                out.push(match b {
+                    StructureBand::Base(k) => m(sample_to_altitude(base[k.channel()])),
+                    StructureBand::Top(k) => m(sample_to_altitude(top[k.channel()])),
+                    StructureBand::Type(k) => {
+                        m(CloudType::from_code(types[k.channel()]).map(|t| t.code() as f64))
+                    }
+                    StructureBand::Source(k) => {
+                        m(unpack_source(types[3], k.channel()).map(|s| s as u8 as f64))
+                    }
+                    StructureBand::WindU(k) => m(self.winds[k.channel()]
+                        .as_ref()
+                        .map(|_| sample_to_wind(u[k.channel()]))),
+                    StructureBand::WindV(k) => m(self.winds[k.channel()]
+                        .as_ref()
+                        .map(|_| sample_to_wind(v[k.channel()]))),
+                    StructureBand::ConvectiveBase => m(sample_to_altitude(base[3])),
+                    StructureBand::ConvectiveTop => m(sample_to_altitude(top[3])),
+                });
             }
         }
     }
