@@ -1,273 +1,12 @@
 // March stage: one compute invocation per pixel marches the view ray through the cloud shells
 // (DESIGN §2–4) and writes premultiplied linear cloud radiance + opacity to a storage texture.
 
-// Bind groups by lifetime: 0 lives as long as the device, 1 as the map, 2 as the output size.
-@group(0) @binding(0) var<uniform> f: Frame;
-@group(0) @binding(1) var shape_tex: texture_3d<f32>;
-@group(0) @binding(2) var detail_tex: texture_3d<f32>;
-@group(0) @binding(3) var clamp_lin: sampler;
-@group(0) @binding(4) var repeat_lin: sampler;
-@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, N_COUNTERS>;
-@group(0) @binding(6) var profiles: texture_2d<f32>;     // per genus row: (P, D) by height fraction
-@group(1) @binding(0) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
-@group(1) @binding(1) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
-// The map's structure (render::structure): R/G/B low/middle/high, A the convective cloud.
-@group(1) @binding(2) var st_base: texture_2d<f32>;      // cloud base, m
-@group(1) @binding(3) var st_top: texture_2d<f32>;       // cloud top, m
-@group(1) @binding(4) var st_kind: texture_2d<f32>;      // genus code, nearest texel
-@group(1) @binding(5) var st_wind: texture_2d<f32>;      // (u, v) high in RG, middle in BA, m/s
+// Bind groups by lifetime: 0 lives as long as the device, 1 as the map (both in cloud.wgsl),
+// 2 as the output size.
 @group(2) @binding(0) var out_cloud: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(1) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
 
-// Genus codes (stratus_ingest::weather::CloudType) and the profile table's rows.
-const T_CIRRUS: f32 = 1.0;
-const T_CIRROSTRATUS: f32 = 3.0;
-const T_CUMULONIMBUS: f32 = 10.0;
-const PROFILE_ROWS: f32 = 11.0;
-const PROFILE_WIDTH: f32 = 64.0;
-// The column thickness a layer's density is normalised to (render::frame::REFERENCE_THICKNESS_M).
-const REFERENCE_THICKNESS_M: f32 = 2000.0;
-// Half-length of a cirrus streak along the wind (m).
-const STREAK_M: f32 = 2500.0;
-
-// Work counters: indices into `counters`, the fields of render::march::Counters in order.
-const C_RAYS: u32 = 0u;
-const C_STEPS: u32 = 1u;
-const C_DENSITY: u32 = 2u;
-const C_DETAIL: u32 = 3u;
-const C_LIGHT: u32 = 4u;
-const C_OUTSIDE: u32 = 5u;
-const C_SKIPPED: u32 = 6u;
-const C_EARLY: u32 = 7u;
-// Rays whose march the driver stopped before it ended: Mesa's llvmpipe caps the loop iterations
-// of one shader invocation (65 535, all loops together), which only `reference` reaches.
-const C_CUT: u32 = 8u;
-const N_COUNTERS: u32 = 9u;
-
 var<workgroup> wg_count: array<atomic<u32>, N_COUNTERS>;
-var<private> local_count: array<u32, N_COUNTERS>;
-
-struct Sample {
-    cm: vec3<f32>,   // coverage per layer
-    inside: bool,    // inside the region
-};
-
-fn weather_at(uv: vec2<f32>) -> Sample {
-    var s: Sample;
-    s.inside = uv.x >= 0.0;
-    s.cm = vec3<f32>(0.0);
-    if (s.inside) {
-        let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
-        // Layers that are off are never looked up (density_uv picks a drawn layer).
-        s.cm = clamp(w.rgb * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0));
-    }
-    return s;
-}
-
-// True when the coarse map says nothing is within a cell of this point.
-fn coarse_empty(uv: vec2<f32>) -> bool {
-    if (uv.x < 0.0) {
-        return true;
-    }
-    let dims = vec2<f32>(textureDimensions(coarse));
-    let c = min(vec2<i32>(uv * dims), vec2<i32>(dims) - 1);
-    return textureLoad(coarse, c, 0).r <= 0.0;
-}
-
-// The shape noise's low-frequency FBM at np, remapped by its Perlin-Worley channel (eqs 11–14).
-fn shape_noise(np: vec3<f32>) -> f32 {
-    let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.shape_period_m, 0.0);
-    let fbm = sn.g * 0.625 + sn.b * 0.25 + sn.a * 0.125;
-    return remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
-}
-
-// Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`),
-// eroded by detail noise at the edges, times the density profile gd (DESIGN §2 eqs 15–18).
-// `streak`: a half-length vector along the wind, or zero: the union of the noise shifted both
-// ways along it draws the streaks of cirrus (a union of shifted blobs is a streak; stretching
-// the coordinates instead would jump where the noise origin wraps by a period).
-fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool, streak: vec3<f32>) -> f32 {
-    var ns_tex = shape_noise(np);
-    if (any(streak != vec3<f32>(0.0))) {
-        ns_tex = max(ns_tex, max(shape_noise(np + streak), shape_noise(np - streak)));
-    }
-    let ns = sat(remap(ns_tex * ns_scale, lo, 1.0, 0.0, 1.0));
-    if (ns <= 0.0) {
-        return 0.0;
-    }
-    var nd_mod = 0.0;
-    if (detail) {
-        local_count[C_DETAIL] += 1u;
-        let dn = textureSampleLevel(detail_tex, repeat_lin, np / f.detail_period_m, 0.0);
-        let nd_fbm = dn.r * 0.625 + dn.g * 0.25 + dn.b * 0.125;
-        nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
-    }
-    return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;
-}
-
-// DESIGN §2, eqs 5–18, for one layer band: coverage cm, height fraction ph, noise position np.
-fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
-    let gs = sat(remap(ph, 0.0, 0.07, 0.0, 1.0)) * sat(remap(ph, 0.2 * cm, cm, 1.0, 0.0));
-    let gd = ph * sat(remap(ph, 0.0, 0.15, 0.0, 1.0)) * sat(remap(ph, 0.9, 1.0, 1.0, 0.0)) * cm * 2.0;
-    if (gs <= 0.0 || gd <= 0.0) {
-        return 0.0;
-    }
-    return carve(np, gs, 1.0 - cm, gd, cm, ph, detail, vec3<f32>(0.0));
-}
-
-// DESIGN §7, one column of a genus: the threshold 1 − cm·P(h) from the genus' profile row, so
-// the base is solid and flat and only the noise's peaks reach the top.
-fn genus_density(np: vec3<f32>, cm: f32, ph: f32, code: f32, detail: bool, streak: vec3<f32>) -> f32 {
-    let x = (ph * (PROFILE_WIDTH - 1.0) + 0.5) / PROFILE_WIDTH;
-    let pd = textureSampleLevel(profiles, clamp_lin, vec2<f32>(x, (code + 0.5) / PROFILE_ROWS), 0.0);
-    let gd = pd.g * cm * 2.0;
-    if (pd.r <= 0.0 || gd <= 0.0) {
-        return 0.0;
-    }
-    // The threshold sees coverage^γ (render::profile::Shape::gamma): opacity follows coverage.
-    return carve(np, 1.0, 1.0 - pow(cm, pd.b) * pd.r, gd, cm, ph, detail, streak);
-}
-
-// A cheap hash of a 200 m cell of noise space, in 0..1.
-fn cell_hash(np: vec3<f32>) -> f32 {
-    let c = vec3<u32>(vec3<i32>(floor(np / 200.0)));
-    var x = c.x * 73856093u ^ c.y * 19349663u ^ c.z * 83492791u;
-    x = (x ^ (x >> 16u)) * 0x45d9f3bu;
-    x = x ^ (x >> 16u);
-    return f32(x & 0xffffu) / 65535.0;
-}
-
-// Unit vector toward the wind (u east, v north) at map uv, or zero in calm air.
-fn wind_dir(uv: vec2<f32>, w: vec2<f32>) -> vec3<f32> {
-    if (dot(w, w) < 1.0) {
-        return vec3<f32>(0.0);
-    }
-    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
-    let lon = radians(f.region_west + uv.x * f.region_lon_span);
-    let east = vec3<f32>(-sin(lon), cos(lon), 0.0);
-    let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
-    return normalize(w.x * east + w.y * north);
-}
-
-// Density at altitude h in the column at map uv, from the column's own base, top and genus
-// (render::structure). A cumulonimbus column draws one tower through the convective cloud in
-// place of the layers it spans; elsewhere the layer whose column holds h (the densest one where
-// two overlap) is the only one evaluated.
-fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample) -> f32 {
-    let su = uv * f.st_scale + f.st_offset;
-    let b = textureSampleLevel(st_base, clamp_lin, su, 0.0);
-    let t = textureSampleLevel(st_top, clamp_lin, su, 0.0);
-    // The genus of the nearest texel, the choice dithered over a texel by a hash of the noise
-    // cell, so a boundary between genera blends instead of stepping along texel edges.
-    let dims = vec2<i32>(textureDimensions(st_kind));
-    let kc = clamp(vec2<i32>(floor(su * vec2<f32>(dims) + (cell_hash(np) - 0.5))), vec2<i32>(0), dims - 1);
-    let kind = textureLoad(st_kind, kc, 0);
-    let towers = has_flag(f, FLAG_TOWERS);
-    var k = -1;
-    var best = 0.0;
-    var tower_cm = 0.0;
-    for (var j = 0; j < 3; j++) {
-        if (f.layer_scale[j] > 0.0) {
-            if (towers && kind[j] == T_CUMULONIMBUS) {
-                tower_cm = max(tower_cm, s.cm[j]);
-            } else if (h >= b[j] && h <= t[j] && s.cm[j] > best) {
-                k = j;
-                best = s.cm[j];
-            }
-        }
-    }
-    var base = 0.0;
-    var top = 0.0;
-    var cm = 0.0;
-    var code = 0.0;
-    if (tower_cm > 0.0 && h >= b.a && h <= t.a) {
-        base = b.a;
-        top = t.a;
-        cm = tower_cm;
-        code = T_CUMULONIMBUS;
-    } else if (k >= 0) {
-        base = b[k];
-        top = t[k];
-        cm = best;
-        code = kind[k];
-    } else {
-        return 0.0;
-    }
-    local_count[C_DENSITY] += 1u;
-    let thick = max(top - base, 1.0);
-    let ph = (h - base) / thick;
-    // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
-    let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
-    if (code < 0.5) {
-        return layer_density(np, cm, ph, detail) * scale;
-    }
-    var streak = vec3<f32>(0.0);
-    if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
-        // Streaks along the layer's wind, sheared downwind with height (fall streaks trail).
-        let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
-        let dir = wind_dir(uv, select(w.zw, w.xy, k == 2));
-        streak = dir * STREAK_M;
-        return genus_density(np + dir * (ph * STREAK_M), cm, ph, code, detail, streak) * scale;
-    }
-    return genus_density(np, cm, ph, code, detail, streak) * scale;
-}
-
-// Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.
-// Map uv of a sample (negative u outside the region): one lat/lon per step, shared by the
-// coarse-map test and the weather lookup (on a CPU driver the step's fixed cost dominates).
-fn sample_uv(pos: vec3<f32>) -> vec2<f32> {
-    return region_uv(f, lat_lon(pos));
-}
-
-fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
-    // Checked here as well as in density_uv so a light sample outside the shells costs no lat/lon.
-    if (h < f.shell_base_m || h > f.shell_top_m) {
-        return 0.0;
-    }
-    return density_uv(sample_uv(pos), h, np, detail);
-}
-
-fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
-    if (h < f.shell_base_m || h > f.shell_top_m) {
-        return 0.0;
-    }
-    let s = weather_at(uv);
-    let cull = has_flag(f, FLAG_CULL);
-    if (!s.inside) {
-        if (cull) {
-            return 0.0;
-        }
-        local_count[C_OUTSIDE] += 1u;
-    }
-    if (has_flag(f, FLAG_STRUCTURE)) {
-        // Outside every layer's envelope and the towers' there is nothing to look up.
-        let in_tower = h >= f.tower_base_m && h <= f.tower_top_m;
-        var in_layer = false;
-        for (var j = 0; j < 3; j++) {
-            in_layer = in_layer || (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j] && s.cm[j] > 0.0);
-        }
-        if (!in_tower && !in_layer) {
-            return 0.0;
-        }
-        return column_density(uv, h, np, detail, s);
-    }
-    // The drawn bands are disjoint (frame.rs makes them so): one layer at most holds h, and only
-    // its density is evaluated. A SIMD CPU driver (lavapipe) executes both sides of every branch,
-    // so a loop calling layer_density per layer would cost three evaluations on every sample.
-    var k = -1;
-    for (var j = 0; j < 3; j++) {
-        if (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j]) {
-            k = j;
-        }
-    }
-    if (k < 0 || (cull && s.cm[k] <= 0.0)) {
-        return 0.0;
-    }
-    local_count[C_DENSITY] += 1u;
-    let base = f.layer_base[k];
-    let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
-    return layer_density(np, s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
-}
 
 struct Ray {
     h: f32,          // origin altitude (m)
@@ -320,6 +59,8 @@ fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) ->
 }
 
 const MIN_SEG_STEPS: f32 = 16.0;
+// Halvings of the step in which a ray enters cloud from clear air.
+const REFINE: u32 = 4u;
 // Clear-air stride: normal steps taken after the last cloud sample before striding again.
 const FINE_AFTER_CLOUD: u32 = 8u;
 
@@ -385,8 +126,11 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     var mult = 1.0;
     var fine_left = 0u;
     var finished = false;
-    // Whether the last sample was clear: a cloud met after clear air has its edge refined.
+    // Whether the last sample was clear: a cloud met after clear air has its edge refined, by
+    // `refine` more halvings of [lo_t, t].
     var prev_clear = true;
+    var refine = 0u;
+    var lo_t = 0.0;
     // Two nested loops: the inner one walks to the next sample with cloud, looking up density
     // only; the outer one lights that sample. On a GPU this is the same march as one loop. On a
     // SIMD CPU driver, where every branch is executed under a mask, it keeps the light march
@@ -413,20 +157,47 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
                 fine_left = 0u;
                 continue;
             }
-            if (steps >= max_steps) {
-                finished = true;
-                break;
+            if (refine == 0u) {
+                if (steps >= max_steps) {
+                    finished = true;
+                    break;
+                }
+                steps += 1u;
+                dt = min(clamp(f.step_min_m + f.step_growth * t, f.step_min_m, f.step_max_m), seg_dt);
             }
-            steps += 1u;
-            dt = min(clamp(f.step_min_m + f.step_growth * t, f.step_min_m, f.step_max_m), seg_dt);
-            uv = sample_uv(origin + r.d * t);
-            if (skip && coarse_empty(uv)) {
+            // While refining, the point half-way between the last clear point and t (cloudy).
+            let te = select(t, 0.5 * (lo_t + t), refine > 0u);
+            let uv_e = sample_uv(origin + r.d * te);
+            if (refine == 0u && skip && coarse_empty(uv_e)) {
                 local_count[C_SKIPPED] += 1u;
                 t += max(dt, f.skip_m);
                 continue;
             }
-            h = altitude_at(r.h, mu, t);
-            sigma = density_uv(uv, h, r.np + r.d * t, detail) * f.extinction;
+            let h_e = altitude_at(r.h, mu, te);
+            // The one density call of the loop (a second call site, as a bisection loop of its
+            // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
+            let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
+            if (refine > 0u) {
+                refine -= 1u;
+                if (s_e > 0.0) {
+                    t = te;
+                    sigma = s_e;
+                    uv = uv_e;
+                    h = h_e;
+                } else {
+                    lo_t = te;
+                }
+                if (refine == 0u) {
+                    prev_clear = false;
+                    fine_left = FINE_AFTER_CLOUD;
+                    found = true;
+                    break;
+                }
+                continue;
+            }
+            uv = uv_e;
+            h = h_e;
+            sigma = s_e;
             if (sigma > 0.0 && stride) {
                 // Met cloud on a long step: back up to the last clear sample and go on at the
                 // normal step, so the cloud's near edge is found at full resolution.
@@ -438,24 +209,14 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
             }
             if (sigma > 0.0) {
                 if (prev_clear && t - dt > seg.x) {
-                    // Entering cloud from clear air: bisect the step for the edge. A dense
-                    // cloud is opaque within one step, so its colour is that of the sample;
-                    // at a fixed step that sample's depth inside the edge (and so its light)
-                    // would follow the step's phase, drawing contour rings over the relief.
-                    var lo_t = t - dt;
-                    for (var i = 0; i < 4; i++) {
-                        let mid = 0.5 * (lo_t + t);
-                        let uv_m = sample_uv(origin + r.d * mid);
-                        let s_m = density_uv(uv_m, altitude_at(r.h, mu, mid), r.np + r.d * mid, detail) * f.extinction;
-                        if (s_m > 0.0) {
-                            t = mid;
-                            sigma = s_m;
-                            uv = uv_m;
-                        } else {
-                            lo_t = mid;
-                        }
-                    }
-                    h = altitude_at(r.h, mu, t);
+                    // Entering cloud from clear air: bisect the step for the edge (REFINE
+                    // halvings). A dense cloud is opaque within one step, so its colour is that
+                    // of the sample; at a fixed step that sample's depth inside the edge (and
+                    // so its light) would follow the step's phase, drawing contour rings over
+                    // the relief.
+                    refine = REFINE;
+                    lo_t = t - dt;
+                    continue;
                 }
                 prev_clear = false;
                 fine_left = FINE_AFTER_CLOUD;
@@ -499,7 +260,10 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
         let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
         let ph_amb = sat((h - f.shell_base_m) / max(f.shell_top_m - f.shell_base_m, 1.0));
-        let l_in = lit + ambient * (0.5 + 0.5 * ph_amb);
+        // Low in the cloud the ambient light has come through the cloud above, not from the
+        // blue sky: grey there (a deck seen from below is grey, not the sky's blue).
+        let amb = mix(vec3<f32>(luminance(ambient)), ambient, ph_amb);
+        let l_in = lit + amb * (0.5 + 0.5 * ph_amb);
         // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
         let a = exp(-sigma * dt);
         col += tr * (1.0 - a) * l_in;

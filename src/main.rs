@@ -32,6 +32,8 @@ enum Command {
     Probe(cmd::probe::Args),
     /// Render one frame of a CloudMap to PNG, headless.
     Render(cmd::render::Args),
+    /// A vertical cross-section of the rendered cloud along a great circle, with the map's base and top.
+    Section(cmd::section::Args),
     /// Top-down render vs the CloudMap: Dice, IoU, precision, recall; a CI gate with --min-dice.
     Score(cmd::score::Args),
     /// Fly over a CloudMap (or a GRIB2 file) in a window: flight controls, HUD, control panel.
@@ -88,6 +90,7 @@ fn main() -> ExitCode {
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Ingest(a) => cmd::ingest::run(a),
         Command::Probe(a) => cmd::probe::run(a),
+        Command::Section(a) => cmd::section::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Demo(a) => cmd::demo::run(a),

@@ -23,6 +23,7 @@ pub mod options;
 pub mod probe;
 pub mod render;
 pub mod score;
+pub mod section;
 pub mod verify_advection;
 
 /// Exit code when stdout's reader has gone: 128 + SIGPIPE, what a shell reports for a pipe

@@ -242,7 +242,13 @@ pub const fn uniform<T: GpuStruct>(group: u32, binding: u32) -> Binding {
 /// The structs shared by every stage that declares them.
 pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
     use super::noise::NoiseParams;
+    use super::section::SectionParams;
     vec![
+        (
+            SectionParams::WGSL_NAME,
+            SectionParams::fields(),
+            std::mem::size_of::<SectionParams>(),
+        ),
         (
             FrameUniforms::WGSL_NAME,
             FrameUniforms::fields(),
@@ -456,11 +462,18 @@ mod tests {
     }
 
     fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
-        use super::super::{march, noise, present, shader};
+        use super::super::{march, noise, present, section, shader};
+        // The section's table is the march's groups 0 and 1 and its own: made once, kept.
+        static SECTION: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
         vec![
             ("noise", shader::NOISE, noise::BINDINGS),
             ("march", shader::MARCH, march::BINDINGS),
             ("present", shader::PRESENT, present::BINDINGS),
+            (
+                "section",
+                shader::SECTION,
+                SECTION.get_or_init(section::bindings).as_slice(),
+            ),
         ]
     }
 

@@ -166,6 +166,15 @@ impl MarchPass {
         }
     }
 
+    /// The layouts of the device's and the map's groups, which the section stage shares.
+    pub fn shared_layouts(&self) -> [&wgpu::BindGroupLayout; 2] {
+        [&self.layouts[0], &self.layouts[1]]
+    }
+
+    pub fn device_bind(&self) -> &wgpu::BindGroup {
+        &self.device_bind
+    }
+
     /// The map's bind group: made again only when the map's textures are.
     pub fn bind_map(&self, gpu: &Gpu, weather: &WeatherMap) -> wgpu::BindGroup {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());

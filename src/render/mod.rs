@@ -16,6 +16,7 @@ pub mod present;
 pub mod preset;
 pub mod profile;
 pub mod readback;
+pub mod section;
 pub mod shader;
 pub mod stats;
 pub mod structure;
@@ -302,6 +303,8 @@ pub struct Renderer {
     timer: Option<stats::PassTimer>,
     stats: stats::StatsReader,
     made: Made,
+    /// Made on the first section asked for (`stratus section`); the views never need it.
+    section: Option<section::SectionPass>,
 }
 
 /// Largest output side (and the limit the adapter sets, whichever is smaller).
@@ -332,6 +335,7 @@ impl Renderer {
                 map_textures: 1,
                 targets: 0,
             },
+            section: None,
             gpu,
         }
     }
@@ -450,6 +454,63 @@ impl Renderer {
             q.resolve(enc);
         }
         Ok(())
+    }
+
+    /// The cloud's extinction (1/m) on a vertical curtain: one image column over each unit
+    /// ECEF ground direction in `columns`, `height` rows from `top_m` (row 0) down to sea level,
+    /// evaluated by the march's own density at the preset's detail (row-major).
+    pub fn section(
+        &mut self,
+        columns: &[glam::DVec3],
+        height: u32,
+        top_m: f32,
+        settings: &Settings,
+    ) -> Result<Vec<f32>, RenderError> {
+        let width = u32::try_from(columns.len()).unwrap_or(u32::MAX);
+        self.check_size(width, height)?;
+        if !(top_m.is_finite() && top_m > 0.0) {
+            return Err(RenderError::BadSetting(format!(
+                "section top {top_m} m must be a positive altitude"
+            )));
+        }
+        settings.validate()?;
+        let sky = self.sky(&View::TopDown, settings)?;
+        let uniforms = frame::build(&frame::FrameInput {
+            view: View::TopDown,
+            width,
+            height,
+            target_width: width,
+            sky,
+            region: &self.meta.region,
+            weather: &self.weather,
+            settings,
+        })?;
+        let scope = self
+            .gpu
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        let pass = self
+            .section
+            .get_or_insert_with(|| section::SectionPass::new(&self.gpu, &self.march));
+        self.gpu
+            .queue
+            .write_buffer(&self.march.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        let out = pass.encode(
+            &self.gpu,
+            &mut enc,
+            (self.march.device_bind(), &self.map_bind),
+            columns,
+            height,
+            top_m,
+        );
+        let pending = readback::Pending::buffer(&self.gpu, &mut enc, &out);
+        self.gpu.queue.submit([enc.finish()]);
+        let bytes = pending.finish(&self.gpu)?;
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(RenderError::Gpu(e.to_string()));
+        }
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
     /// Queue a copy of the last encoded frame's counters and pass times, to be read by

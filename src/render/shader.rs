@@ -1,4 +1,5 @@
-//! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front.
+//! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front, and
+//! the stages that evaluate the cloud (march, section) with `cloud.wgsl` too.
 
 pub const NOISE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -6,7 +7,13 @@ pub const NOISE: &str = concat!(
 );
 pub const MARCH: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/march.wgsl")
+);
+pub const SECTION: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/cloud.wgsl"),
+    include_str!("../../shaders/section.wgsl")
 );
 pub const PRESENT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -27,7 +34,12 @@ mod tests {
     /// Every stage parses and validates with naga, without a GPU.
     #[test]
     fn shaders_validate() {
-        for (name, src) in [("noise", NOISE), ("march", MARCH), ("present", PRESENT)] {
+        for (name, src) in [
+            ("noise", NOISE),
+            ("march", MARCH),
+            ("section", SECTION),
+            ("present", PRESENT),
+        ] {
             let module = naga::front::wgsl::parse_str(src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
             naga::valid::Validator::new(

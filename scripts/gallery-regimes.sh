@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Regenerate docs/gallery/regimes/: five cloud regimes from the real GFS sample (valid
+# 2011-01-15 12 UTC, North Atlantic), each as one side-by-side PNG: the previous renderer
+# (left, bands) and the present one (right, per-column base/top and per-genus profiles).
+#
+# The left halves were made with the renderer at commit 12472f1. Give that binary as
+# OLD_STRATUS=/path/to/old/stratus to re-render them too; without it, the left half of each
+# existing picture is kept and only the right half is re-rendered.
+# STRATUS=/path/to/stratus uses a prebuilt present renderer instead of `cargo build --release`.
+# Usage: [OLD_STRATUS=...] [STRATUS=...] bash scripts/gallery-regimes.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+gfs=data-samples/gfs-2011011012-f120-2p5.grib2
+out=docs/gallery/regimes
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+mkdir -p "$out"
+if [ -z "${STRATUS:-}" ]; then
+  cargo build --release -q
+  STRATUS=target/release/stratus
+fi
+old=${OLD_STRATUS:-}
+# The new binary writes the map and its structure images; the old one reads the same map
+# (it ignores the structure images and draws each layer as a band).
+"$STRATUS" ingest "$gfs" --region 30,65,-60,10 --size 1024x512 --out "$tmp/natl.png" >/dev/null
+# 13:40 UTC: local noon near 25°W; the Sun is about 18° up at 50°N in January.
+time=2011-01-15T13:40:00Z
+
+# shot NAME render-args...: right half always, left half with OLD_STRATUS only.
+shot() {
+  local name=$1; shift
+  local args=(--map "$tmp/natl.json" --preset balanced --size 960x540 --time "$time" "$@")
+  "$STRATUS" render "${args[@]}" --out "$tmp/after.png" 2> >(grep -v XDG_RUNTIME >&2)
+  if [ -n "$old" ]; then
+    "$old" render "${args[@]}" --out "$tmp/before.png" 2> >(grep -v XDG_RUNTIME >&2)
+  elif [ -f "$out/$name.png" ]; then
+    python3 -c 'import sys; from PIL import Image; Image.open(sys.argv[1]).crop((0, 0, 960, 540)).save(sys.argv[2])' \
+      "$out/$name.png" "$tmp/before.png"
+  else
+    echo "no $out/$name.png to take the left half from: set OLD_STRATUS" >&2
+    exit 1
+  fi
+  python3 - "$tmp/before.png" "$tmp/after.png" "$out/$name.png" <<'PY'
+import sys
+from PIL import Image
+b, a = (Image.open(p).convert("RGB") for p in sys.argv[1:3])
+c = Image.new("RGB", (b.width + 8 + a.width, b.height), (255, 255, 255))
+c.paste(b, (0, 0))
+c.paste(a, (b.width + 8, 0))
+c.save(sys.argv[3], optimize=True)
+PY
+  echo "$out/$name.png"
+}
+
+# 1, 2: a stratocumulus overcast (46.5N 50W: low 1.0, 643-2432 m, nothing above), from 6 km
+# above looking NNE and from the ground looking up 20°.
+shot overcast-above --camera 46.0,-50.5,6000 --heading 20 --pitch -20
+shot overcast-below --camera 46.5,-50.0,50 --heading 20 --pitch 20
+# 3: cumulus, 45N 47.5W (low 0.72, 827-1585 m), from 3 km looking down 25°.
+shot cumulus --camera 44.8,-47.8,3000 --heading 30 --pitch -25
+# 4: the cumulonimbus band along 50-51N 26-22W (anvil through GFS's convective cloud), from
+# 6 km, 145 km to the south-south-east, looking NNW and 4° up.
+shot cumulonimbus --camera 48.7,-23.5,6000 --heading 345 --pitch 4
+# 5: cirrus, 44N 3.5W (high 0.43, 10.1-13.0 km, nothing below), from the ground looking N 30° up.
+shot cirrus --camera 44.0,-3.5,50 --heading 0 --pitch 30
+echo "gallery written to $out"
