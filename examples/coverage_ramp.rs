@@ -4,7 +4,7 @@
 //! map with structure images (DESIGN §7 profiles). That crossing is what the score's map
 //! threshold stands for (docs/score.md).
 //!
-//! `cargo run --release --example coverage_ramp [-- --genera-only]`
+//! `cargo run --release --example coverage_ramp [-- --genera-only] [GENUS…]`
 
 use chrono::{DateTime, Utc};
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
@@ -17,7 +17,10 @@ use stratus_ingest::weather::CloudType;
 const BINS: usize = 20;
 
 fn main() -> anyhow::Result<()> {
-    let genera_only = std::env::args().any(|a| a == "--genera-only");
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let genera_only = args.iter().any(|a| a == "--genera-only");
+    // Any other argument names the genera to measure (all when none is named).
+    let named: Vec<&String> = args.iter().filter(|a| !a.starts_with("--")).collect();
     let region = Region {
         south: 20.0,
         north: 30.0,
@@ -46,6 +49,9 @@ fn main() -> anyhow::Result<()> {
         }
     }
     for genus in CloudType::ALL {
+        if !named.is_empty() && !named.iter().any(|n| *n == genus.name()) {
+            continue;
+        }
         // Each genus in the layer the rule puts it in, over that layer's band.
         let (kind, base, top) = match genus {
             CloudType::Cirrus | CloudType::Cirrocumulus | CloudType::Cirrostratus => bands[2],

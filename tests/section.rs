@@ -75,7 +75,7 @@ fn the_curtain_shows_the_cloud_between_the_maps_base_and_top() {
         rows.len() > 20,
         "no cloud in the overcast's column: {rows:?}"
     );
-    // The renderer widens thin columns to 800 m and filters between structure texels.
+    // The renderer widens columns thinner than 1 200 m and filters between structure texels.
     for &y in &rows {
         assert!(
             alt(y) > base - 600.0 && alt(y) < topm + 600.0,

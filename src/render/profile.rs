@@ -57,9 +57,9 @@ pub fn shape(t: CloudType) -> Shape {
     };
     match t {
         // Thin ice, streaked by the march along the wind.
-        Cirrus => s(0.2, 0.45, 0.85, 0.0, 0.15, 2.3),
-        Cirrocumulus => s(0.15, 0.4, 0.9, 0.0, 0.15, 2.2),
-        Cirrostratus => s(0.1, 0.7, 1.0, 0.0, 0.25, 2.6),
+        Cirrus => s(0.2, 0.45, 0.85, 0.0, 0.3, 2.1),
+        Cirrocumulus => s(0.15, 0.4, 0.9, 0.0, 0.3, 2.1),
+        Cirrostratus => s(0.1, 0.7, 1.0, 0.0, 0.4, 2.3),
         Altocumulus => s(0.05, 0.35, 1.0, 0.0, 0.8, 2.31),
         Altostratus => s(0.04, 0.7, 1.0, 0.0, 0.9, 2.31),
         Nimbostratus => s(0.03, 0.8, 1.05, 0.0, 1.0, 2.5),
@@ -117,30 +117,13 @@ pub fn texture(gpu: &Gpu) -> wgpu::Texture {
         .iter()
         .flat_map(|t| t.map(half::f16::from_f32))
         .collect();
-    let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("cloud-type profiles"),
-        size: wgpu::Extent3d {
-            width: LUT_WIDTH as u32,
-            height: LUT_ROWS as u32,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba16Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    gpu.queue.write_texture(
-        tex.as_image_copy(),
-        bytemuck::cast_slice(&texels),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(LUT_WIDTH as u32 * 8),
-            rows_per_image: Some(LUT_ROWS as u32),
-        },
-        tex.size(),
+    let tex = super::weather::map_texture(
+        gpu,
+        "cloud-type profiles",
+        (LUT_WIDTH, LUT_ROWS),
+        wgpu::TextureFormat::Rgba16Float,
     );
+    super::weather::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
     tex
 }
 

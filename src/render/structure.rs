@@ -52,19 +52,15 @@ pub struct Prepared {
 const CB: u8 = CloudType::Cumulonimbus.code();
 
 /// Thinnest column drawn (m): where RH crosses rh_cr between two close levels the column can
-/// be under 100 m, thinner than a fast march step, so it would flicker in and out with the step's
-/// phase. Such a column is widened about its middle (its density is normalised to its
-/// thickness, so its optical depth is kept).
-pub const MIN_COLUMN_M: f32 = 800.0;
+/// be under 100 m, thinner than a fast march step, so it would flicker in and out with the
+/// step's phase. Such a column is deepened upward: the base, where a pilot sees the cloud
+/// start, stays the forecast's, and its density is normalised to its thickness, so its optical
+/// depth is kept.
+pub const MIN_COLUMN_M: f32 = 1200.0;
 
 /// A column (base, top) at least [`MIN_COLUMN_M`] thick.
 fn widened((base, top): (f32, f32)) -> (f32, f32) {
-    let missing = MIN_COLUMN_M - (top - base);
-    if missing > 0.0 {
-        (base - 0.5 * missing, top + 0.5 * missing)
-    } else {
-        (base, top)
-    }
+    (base, top.max(base + MIN_COLUMN_M))
 }
 
 fn is_streaked(code: u8) -> bool {
@@ -102,8 +98,8 @@ impl Prepared {
                     Some(s) => (s.base_min_m as f32, s.top_max_m as f32),
                     None => (l.base_m as f32, l.top_m as f32),
                 };
-                // Room for the thinnest columns' widening.
-                e[l.kind.channel()] = Some((base - 0.5 * MIN_COLUMN_M, top + 0.5 * MIN_COLUMN_M));
+                // Room for the thinnest columns' deepening.
+                e[l.kind.channel()] = Some((base, top + MIN_COLUMN_M));
             }
             e
         };
@@ -223,21 +219,9 @@ const LABELS: [&str; 4] = [
 impl StructureTextures {
     /// Textures of `p`'s size, not yet written ([`store`](Self::store) fills them).
     pub fn new(gpu: &Gpu, p: &Prepared) -> StructureTextures {
+        let size = (p.width as usize, p.height as usize);
         let textures = LABELS.map(|label| {
-            gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: p.width,
-                    height: p.height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba16Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            })
+            super::weather::map_texture(gpu, label, size, wgpu::TextureFormat::Rgba16Float)
         });
         StructureTextures {
             textures,
@@ -252,16 +236,7 @@ impl StructureTextures {
 
     pub fn store(&mut self, gpu: &Gpu, p: &Prepared) {
         for (tex, texels) in self.textures.iter().zip(&p.texels) {
-            gpu.queue.write_texture(
-                tex.as_image_copy(),
-                bytemuck::cast_slice(texels),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(p.width * 8),
-                    rows_per_image: Some(p.height),
-                },
-                tex.size(),
-            );
+            super::weather::write(gpu, tex, bytemuck::cast_slice(texels), 8);
         }
         self.info = p.info;
     }
@@ -272,8 +247,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn thin_columns_are_widened_about_their_middle() {
-        assert_eq!(widened((7117.0, 7203.0)), (6760.0, 7560.0));
+    fn thin_columns_are_deepened_upward() {
+        assert_eq!(widened((7117.0, 7203.0)), (7117.0, 8317.0));
         assert_eq!(widened((1000.0, 3000.0)), (1000.0, 3000.0));
     }
 

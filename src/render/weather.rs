@@ -158,7 +158,7 @@ impl Prepared {
     }
 }
 
-fn map_texture(
+pub(super) fn map_texture(
     gpu: &Gpu,
     label: &str,
     (w, h): (usize, usize),
@@ -180,7 +180,7 @@ fn map_texture(
     })
 }
 
-fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
+pub(super) fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
     let (w, h) = (tex.width(), tex.height());
     gpu.queue.write_texture(
         tex.as_image_copy(),
