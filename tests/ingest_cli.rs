@@ -2,23 +2,12 @@
 //! bad input the ingest issue lists. Bad input must exit 2 with one line naming the file and
 //! leave no output behind; nothing may panic.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::{real_map, shared, stratus};
 use stratus_ingest::encode::fixtures;
-
-fn shared(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared")
-        .join(rel)
-}
-
-fn stratus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_stratus"))
-        .args(args)
-        .output()
-        .expect("run stratus")
-}
 
 const EA: [&str; 4] = ["--region", "0,55,39,105", "--size", "130x110"];
 
@@ -293,20 +282,7 @@ fn bit_flips_in_a_real_message_never_panic_or_leave_output() {
 #[test]
 fn probe_reports_the_column() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("natl.png");
-    let file = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
-    let o = stratus(&[
-        "ingest",
-        file.to_str().unwrap(),
-        "--region",
-        "30,70,-60,30",
-        "--size",
-        "180x80",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let map = dir.path().join("natl.json");
+    let map = real_map(dir.path(), "natl", "30,70,-60,30", "180x80");
     let map = map.to_str().unwrap();
     let o = stratus(&["probe", "--map", map, "--at", "50,-25", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

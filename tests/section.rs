@@ -3,24 +3,12 @@
 
 mod common;
 
-use common::{shared, stratus};
+use common::{real_map, stratus};
 
-/// Ingest the North Atlantic from the real sample; the map's sidecar path.
+/// The North Atlantic from the real sample; the map's sidecar path.
 fn natl(dir: &std::path::Path) -> String {
-    let out = dir.join("natl.png");
-    let file = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
-    let o = stratus(&[
-        "ingest",
-        file.to_str().unwrap(),
-        "--region",
-        "30,70,-60,30",
-        "--size",
-        "360x160",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("natl.json").to_str().unwrap().to_string()
+    let map = real_map(dir, "natl", "30,70,-60,30", "360x160");
+    map.to_str().unwrap().to_string()
 }
 
 /// Whether a pixel is cloud drawn by the section (bright grey), not an overlay line.

@@ -133,6 +133,30 @@ pub struct GeoRef {
 }
 
 impl GeoRef {
+    /// The georeferencing tags of an image's first IFD: pixel scale, tie point and the GeoKey
+    /// directory (EPSG:4326, degrees), with `raster_type` 1 (pixel is area: the coverage, whose
+    /// pixels are cells) or 2 (pixel is point: the structure, whose pixels are grid points).
+    fn push_tags(&self, e: &mut Vec<Entry>, raster_type: u16) {
+        e.push(Entry::double(MODEL_PIXEL_SCALE, &[self.dx, self.dy, 0.0]));
+        e.push(Entry::double(
+            MODEL_TIEPOINT,
+            &[0.0, 0.0, 0.0, self.west, self.north, 0.0],
+        ));
+        let keys = [
+            (GT_MODEL_TYPE, MODEL_TYPE_GEOGRAPHIC),
+            (GT_RASTER_TYPE, raster_type),
+            (GEOGRAPHIC_TYPE, EPSG_WGS84),
+            (GEOG_ANGULAR_UNITS, ANGULAR_DEGREE),
+        ];
+        // Header: version 1, revision 1.1, key count; then (id, location 0 = the value itself,
+        // count 1, value) per key, ids ascending.
+        let mut dir = vec![1, 1, 1, keys.len() as u16];
+        for (id, v) in keys {
+            dir.extend_from_slice(&[id, 0, 1, v]);
+        }
+        e.push(Entry::short(GEO_KEY_DIRECTORY, &dir));
+    }
+
     /// The georeference of a `width`×`height` map of `region`, pixel-is-area as the map is:
     /// pixel (i, j) covers the square whose centre is `region.pixel_lon(i)`,
     /// `region.pixel_lat(j)`. The west edge is taken into [-180, 180) and the east is
@@ -367,25 +391,7 @@ impl GeoTiffWriter {
         e.push(Entry::short(EXTRA_SAMPLES, &[0; SAMPLES - 1]));
         e.push(Entry::short(SAMPLE_FORMAT, &[1; SAMPLES]));
         if k == 0 {
-            let g = self.spec.georef;
-            e.push(Entry::double(MODEL_PIXEL_SCALE, &[g.dx, g.dy, 0.0]));
-            e.push(Entry::double(
-                MODEL_TIEPOINT,
-                &[0.0, 0.0, 0.0, g.west, g.north, 0.0],
-            ));
-            let keys = [
-                (GT_MODEL_TYPE, MODEL_TYPE_GEOGRAPHIC),
-                (GT_RASTER_TYPE, RASTER_PIXEL_IS_AREA),
-                (GEOGRAPHIC_TYPE, EPSG_WGS84),
-                (GEOG_ANGULAR_UNITS, ANGULAR_DEGREE),
-            ];
-            // Header: version 1, revision 1.1, key count; then (id, location 0 = the value
-            // itself, count 1, value) per key, ids ascending.
-            let mut dir = vec![1, 1, 1, keys.len() as u16];
-            for (id, v) in keys {
-                dir.extend_from_slice(&[id, 0, 1, v]);
-            }
-            e.push(Entry::short(GEO_KEY_DIRECTORY, &dir));
+            self.spec.georef.push_tags(&mut e, RASTER_PIXEL_IS_AREA);
             e.push(Entry::ascii(GDAL_METADATA, xml));
         }
         Ifd { entries: e }

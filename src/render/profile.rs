@@ -86,7 +86,7 @@ impl Shape {
         // Linear fall, not smooth: the noise's level set under a linear threshold makes domes.
         let down = 1.0 - ((h - self.top_from) / (1.0 - self.top_from).max(1e-6)).clamp(0.0, 1.0);
         let anvil = self.anvil * smoothstep(0.7, 0.9, h);
-        (up * (self.plateau + anvil) * down.min(1.0)).max(0.0)
+        (up * (self.plateau + anvil) * down).max(0.0)
     }
 
     /// Density profile D at `h`: solid from the base (60 % at once, all by mid-height), fading

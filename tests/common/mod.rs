@@ -39,3 +39,22 @@ pub fn synthetic_map(dir: &Path) -> PathBuf {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     dir.join("m.json")
 }
+
+/// Ingest the real GFS sample (`../shared`, all layers) over `region` at `size` into
+/// `dir/NAME.png`, returning the sidecar.
+pub fn real_map(dir: &Path, name: &str, region: &str, size: &str) -> PathBuf {
+    let file = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let png = dir.join(format!("{name}.png"));
+    let o = stratus(&[
+        "ingest",
+        file.to_str().unwrap(),
+        "--region",
+        region,
+        "--size",
+        size,
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join(format!("{name}.json"))
+}

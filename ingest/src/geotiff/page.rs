@@ -16,10 +16,8 @@
 use rayon::prelude::*;
 
 use super::{
-    xml_escape, Entry, GeoRef, GeoTiffError, Ifd, ANGULAR_DEGREE, COMPRESSION, EPSG_WGS84,
-    EXTRA_SAMPLES, GDAL_METADATA, GEOGRAPHIC_TYPE, GEOG_ANGULAR_UNITS, GEO_KEY_DIRECTORY,
-    GT_MODEL_TYPE, GT_RASTER_TYPE, IMAGE_LENGTH, IMAGE_WIDTH, MODEL_PIXEL_SCALE, MODEL_TIEPOINT,
-    MODEL_TYPE_GEOGRAPHIC, NEW_SUBFILE_TYPE, PHOTOMETRIC, PLANAR_CONFIGURATION, PREDICTOR,
+    xml_escape, Entry, GeoRef, GeoTiffError, Ifd, COMPRESSION, EXTRA_SAMPLES, GDAL_METADATA,
+    IMAGE_LENGTH, IMAGE_WIDTH, NEW_SUBFILE_TYPE, PHOTOMETRIC, PLANAR_CONFIGURATION, PREDICTOR,
     SAMPLES_PER_PIXEL, SAMPLE_FORMAT, TILE, TILE_BYTE_COUNTS, TILE_LENGTH, TILE_OFFSETS,
     TILE_WIDTH,
 };
@@ -180,23 +178,7 @@ impl Page {
             e.push(Entry::short(EXTRA_SAMPLES, &vec![0; n - 1]));
         }
         e.push(Entry::short(SAMPLE_FORMAT, &vec![SAMPLE_IEEE_FLOAT; n]));
-        let g = s.georef;
-        e.push(Entry::double(MODEL_PIXEL_SCALE, &[g.dx, g.dy, 0.0]));
-        e.push(Entry::double(
-            MODEL_TIEPOINT,
-            &[0.0, 0.0, 0.0, g.west, g.north, 0.0],
-        ));
-        let keys = [
-            (GT_MODEL_TYPE, MODEL_TYPE_GEOGRAPHIC),
-            (GT_RASTER_TYPE, RASTER_PIXEL_IS_POINT),
-            (GEOGRAPHIC_TYPE, EPSG_WGS84),
-            (GEOG_ANGULAR_UNITS, ANGULAR_DEGREE),
-        ];
-        let mut dir = vec![1, 1, 1, keys.len() as u16];
-        for (id, v) in keys {
-            dir.extend_from_slice(&[id, 0, 1, v]);
-        }
-        e.push(Entry::short(GEO_KEY_DIRECTORY, &dir));
+        s.georef.push_tags(&mut e, RASTER_PIXEL_IS_POINT);
         e.push(Entry::ascii(GDAL_METADATA, &self.metadata_xml()));
         e.push(Entry::ascii(GDAL_NODATA, &format_nodata(s.nodata)));
         Ifd { entries: e }
