@@ -45,6 +45,10 @@ const N_COUNTERS: u32 = 9u;
 
 var<private> local_count: array<u32, N_COUNTERS>;
 
+// Set by the shadow stage's pipeline: the density is the noise's expectation, not one sample of
+// it, so the full-column light is smooth by construction (carve below).
+override MEAN_DENSITY: bool = false;
+
 struct Sample {
     cm: vec3<f32>,   // coverage per layer
     inside: bool,    // inside the region
@@ -82,6 +86,9 @@ fn shape_noise(np: vec3<f32>) -> f32 {
 // Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`),
 // eroded by detail noise at the edges, times the density profile gd (DESIGN §2 eqs 15–18).
 fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool) -> f32 {
+    if (MEAN_DENSITY) {
+        return mean_carve(ns_scale, lo) * gd;
+    }
     let ns_tex = shape_noise(np);
     let ns = sat(remap(ns_tex * ns_scale, lo, 1.0, 0.0, 1.0));
     if (ns <= 0.0) {
@@ -95,6 +102,18 @@ fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detai
         nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
     }
     return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;
+}
+
+// The expectation of carve's sat(remap(n·s, lo, 1, 0, 1)) over a noise value n uniform in 0..1
+// (detail erosion left out): (1/s)·∫ sat((x − lo)/(1 − lo)) dx over x in 0..s, for s ≤ 1.
+fn mean_carve(s: f32, lo: f32) -> f32 {
+    let a = max(lo, 0.0);
+    if (s <= a || s <= 0.0) {
+        return 0.0;
+    }
+    let span = max(1.0 - lo, 1e-4);
+    let m = min(s, 1.0);
+    return ((m - lo) * (m - lo) - (a - lo) * (a - lo)) / (2.0 * span * s);
 }
 
 // DESIGN §2, eqs 5–18, for one layer band: coverage cm, height fraction ph, noise position np.

@@ -62,6 +62,31 @@ struct Frame {
     st_offset: vec2<f32>,
 };
 
+// The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and
+// how the stages that light or show the scene look it up (scene.wgsl).
+struct ShadowParams {
+    key_dir: vec3<f32>,         // toward the key light (Sun or Moon) the volume was made for
+    bottom_m: f32,              // altitude of the volume's bottom and top faces (m)
+    top_m: f32,
+    enabled: u32,               // 0: no volume (the preset's switch is off); look-ups give 0
+    steps: u32,                 // samples per path in the shadow stage
+    max_path_m: f32,            // longest path toward the key light (m)
+};
+
+// The exposure stage's settings (render::exposure::ExposureParams) and result.
+struct ExposureParams {
+    ev_mul: f32,                // 2^EV: the panel's or command line's offset
+    rate: f32,                  // share of the way to the metered exposure taken this frame (1: all)
+    auto_on: u32,               // 0: Frame.exposure is used as it is
+    _pad: u32,
+};
+struct ExposureState {
+    value: f32,                 // what the present stage multiplies by
+    adapted: f32,               // the adapted exposure before the offset
+    metered: f32,               // the log-mean luminance metered this frame
+    _pad: f32,
+};
+
 // Frame.flags bits.
 const FLAG_SKIP: u32 = 1u;     // empty-space skipping over the coarse map
 const FLAG_CULL: u32 = 2u;     // no sampling outside the region / cloudless map

@@ -2,7 +2,7 @@
 // (DESIGN §2–4) and writes premultiplied linear cloud radiance + opacity to a storage texture.
 
 // Bind groups by lifetime: 0 lives as long as the device, 1 as the map (both in cloud.wgsl),
-// 2 as the output size.
+// 2 as the output size, 3 (scene.wgsl) as the key light's direction.
 @group(2) @binding(0) var out_cloud: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(1) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
 
@@ -250,20 +250,34 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         if (lod && tr < 0.3) {
             nl = max(1u, n_light / 2u);
         }
-        let tau = light_depth(pos, h, np, key, nl);
+        // Toward the key light: the short march through the detailed cloud near the sample,
+        // then the whole column beyond it from the shadow stage's smooth volume (DESIGN §8).
+        var tau = light_depth(pos, h, np, key, nl);
+        var od_up = 0.0;
+        var bounce = vec3<f32>(0.0);
+        if (!no_sky) {
+            let reach = f.light_step0_m * (f32(nl) + 5.0);
+            let far = pos + key * reach;
+            tau += column_od(far, altitude_at(h, dot(key, up), reach)).x;
+            od_up = column_od(pos, h).y;
+            // Light the ground below sends back up, for the bases (its albedo, in its shadows).
+            let g = up * EARTH_R;
+            bounce = DEFAULT_ALBEDO * ground_irradiance(g, up, 0.0);
+        }
         // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
         // black, plus two octaves of Hillaire's multiple-scattering approximation
-        // (extinction, phase g and energy each halved per octave).
+        // (extinction, phase g and energy each halved per octave); deeper than those reach, the
+        // diffuse light a deck lets through (two-stream), leaving it as from a Lambertian base.
         let powder = 1.0 - exp(-2.0 * tau);
         var ms = max(exp(-tau), f.beer_clamp * exp(-0.25 * tau)) * ph_fn;
         ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
         ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
+        let mu0 = max(dot(key, up), 0.1);
+        ms = max(ms, diffuse_t(tau * mu0) * mu0 / PI);
         let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
-        let ph_amb = sat((h - f.shell_base_m) / max(f.shell_top_m - f.shell_base_m, 1.0));
-        // Low in the cloud the ambient light has come through the cloud above, not from the
-        // blue sky: grey there (a deck seen from below is grey, not the sky's blue).
-        let amb = mix(vec3<f32>(luminance(ambient)), ambient, ph_amb);
-        let l_in = lit + amb * (0.5 + 0.5 * ph_amb);
+        // Ambient: the sky through the column above (the volume's mean, smooth, never one noise
+        // look-up), and the ground's light from below.
+        let l_in = lit + ambient * diffuse_t(od_up) + 0.5 * bounce;
         // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
         let a = exp(-sigma * dt);
         col += tr * (1.0 - a) * l_in;

@@ -29,9 +29,11 @@ pub struct LookOpts {
     /// Sun direction E,N,U in the camera's local frame, instead of the computed one.
     #[arg(long, allow_hyphen_values = true)]
     pub sun_dir: Option<String>,
-    /// Exposure correction in stops.
-    #[arg(long, default_value_t = defaults::EXPOSURE_EV, allow_negative_numbers = true)]
-    pub exposure: f64,
+    /// Exposure: `auto` adapts to the scene (metered each frame, within ±3 stops of the Sun's
+    /// height exposure); a number of stops fixes it (over a daylight exposure), so pictures
+    /// can be compared by luminance.
+    #[arg(long, default_value = "auto", allow_hyphen_values = true, value_parser = parse_exposure)]
+    pub exposure: Exposure,
     /// Meteorological visibility in km (aerial haze).
     #[arg(long, default_value_t = defaults::VISIBILITY_M / 1000.0)]
     pub visibility_km: f64,
@@ -47,6 +49,23 @@ pub struct LookOpts {
     /// Adapter to use: any part of its name (see the line printed on start).
     #[arg(long)]
     pub adapter: Option<String>,
+}
+
+/// `--exposure`: adapted to the scene, or fixed at a number of stops.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    Auto,
+    Fixed(f64),
+}
+
+fn parse_exposure(s: &str) -> Result<Exposure, String> {
+    if s == "auto" {
+        return Ok(Exposure::Auto);
+    }
+    match s.parse::<f64>() {
+        Ok(ev) if ev.is_finite() => Ok(Exposure::Fixed(ev)),
+        _ => Err(format!("\"{s}\" is neither `auto` nor a number of stops")),
+    }
 }
 
 /// Parse a comma-separated list of exactly `n` numbers.
@@ -92,7 +111,13 @@ impl LookOpts {
             let v = parse_numbers(d, 3, "--sun-dir")?;
             s.sun_override = Some(DVec3::new(v[0], v[1], v[2]));
         }
-        s.exposure_ev = self.exposure;
+        match self.exposure {
+            Exposure::Auto => s.exposure_auto = true,
+            Exposure::Fixed(ev) => {
+                s.exposure_auto = false;
+                s.exposure_ev = ev;
+            }
+        }
         s.visibility_m = self.visibility_km * 1000.0;
         s.coverage_mul = self.coverage;
         s.density_mul = self.density;

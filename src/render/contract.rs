@@ -147,6 +147,8 @@ pub enum Resource {
     Uniform(&'static str, u64),
     /// A read-write storage buffer.
     StorageRw,
+    /// A read-only storage buffer (a stage that only reads what another wrote).
+    StorageRead,
     /// A sampled float 2D texture; `filterable: false` for formats such as R32Float that are
     /// only loaded (WGSL does not say which, so the test compares the rest).
     Texture2d {
@@ -178,6 +180,11 @@ impl Binding {
             },
             Resource::StorageRw => T::Buffer {
                 ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            Resource::StorageRead => T::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
@@ -241,9 +248,26 @@ pub const fn uniform<T: GpuStruct>(group: u32, binding: u32) -> Binding {
 
 /// The structs shared by every stage that declares them.
 pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
+    use super::exposure::{ExposureParams, ExposureState};
     use super::noise::NoiseParams;
     use super::section::SectionParams;
+    use super::shadow::ShadowParams;
     vec![
+        (
+            ShadowParams::WGSL_NAME,
+            ShadowParams::fields(),
+            std::mem::size_of::<ShadowParams>(),
+        ),
+        (
+            ExposureParams::WGSL_NAME,
+            ExposureParams::fields(),
+            std::mem::size_of::<ExposureParams>(),
+        ),
+        (
+            ExposureState::WGSL_NAME,
+            ExposureState::fields(),
+            std::mem::size_of::<ExposureState>(),
+        ),
         (
             SectionParams::WGSL_NAME,
             SectionParams::fields(),
@@ -377,6 +401,7 @@ mod tests {
             {
                 Resource::StorageRw
             }
+            (naga::AddressSpace::Storage { .. }, _) => Resource::StorageRead,
             (
                 naga::AddressSpace::Handle,
                 TypeInner::Image {
@@ -462,13 +487,36 @@ mod tests {
     }
 
     fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
-        use super::super::{march, noise, present, section, shader};
-        // The section's table is the march's groups 0 and 1 and its own: made once, kept.
+        use super::super::{exposure, march, noise, present, section, shader, shadow};
+        // The section's table is the march's groups 0 and 1 and its own: made once, kept (the
+        // same for the stages that add the scene's group).
         static SECTION: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
+        static SHADOW: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
+        static MARCH: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
+        static PRESENT: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
+        static EXPOSURE: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
         vec![
             ("noise", shader::NOISE, noise::BINDINGS),
-            ("march", shader::MARCH, march::BINDINGS),
-            ("present", shader::PRESENT, present::BINDINGS),
+            (
+                "march",
+                shader::MARCH,
+                MARCH.get_or_init(march::bindings).as_slice(),
+            ),
+            (
+                "present",
+                shader::PRESENT,
+                PRESENT.get_or_init(present::bindings).as_slice(),
+            ),
+            (
+                "shadow",
+                shader::SHADOW,
+                SHADOW.get_or_init(shadow::bindings).as_slice(),
+            ),
+            (
+                "exposure",
+                shader::EXPOSURE,
+                EXPOSURE.get_or_init(exposure::bindings).as_slice(),
+            ),
             (
                 "section",
                 shader::SECTION,

@@ -139,6 +139,10 @@ pub fn auto_exposure(sky: &Sky) -> f64 {
     0.6 / key.max(1e-9) * (0.2 + 0.8 * day)
 }
 
+/// The exposure `--exposure EV` fixes at EV 0: about what the Sun's-height exposure gives with
+/// the Sun high (so a fixed exposure reads as a daylight picture).
+pub const FIXED_EXPOSURE: f64 = 0.25;
+
 /// Layer thickness the density is calibrated for (m).
 pub const REFERENCE_THICKNESS_M: f32 = 2000.0;
 
@@ -302,7 +306,12 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.moon_dir = v3(sky.moon.dir);
     u.moon_col = sky.moon.colour.map(|c| c as f32);
     let visibility = s.visibility_m.max(100.0);
-    u.exposure = (exposure_base * 2f64.powf(s.exposure_ev)) as f32;
+    let base = if s.exposure_auto {
+        exposure_base
+    } else {
+        FIXED_EXPOSURE
+    };
+    u.exposure = (base * 2f64.powf(s.exposure_ev)) as f32;
     u.haze_beta = (3.912 / visibility) as f32;
     u.haze_cutoff_m = (5.0 * visibility).min(2.0e6) as f32;
     u.region_south = r.south as f32;

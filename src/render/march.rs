@@ -57,6 +57,15 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_TARGET, 1, Resource::StorageRw),
 ];
 
+/// Every binding of march.wgsl with the scene's group (render::shadow) that it shares.
+pub fn bindings() -> Vec<Binding> {
+    BINDINGS
+        .iter()
+        .chain(super::shadow::SCENE_BINDINGS)
+        .copied()
+        .collect()
+}
+
 const fn b(group: u32, binding: u32, resource: Resource) -> Binding {
     Binding {
         group,
@@ -88,7 +97,11 @@ pub struct MarchPass {
 }
 
 impl MarchPass {
-    pub fn new(gpu: &Gpu, noise: &NoiseTextures) -> MarchPass {
+    pub fn new(
+        gpu: &Gpu,
+        noise: &NoiseTextures,
+        scene_layout: &wgpu::BindGroupLayout,
+    ) -> MarchPass {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::COMPUTE;
         let layouts = [
@@ -98,7 +111,12 @@ impl MarchPass {
         ];
         let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("march"),
-            bind_group_layouts: &[Some(&layouts[0]), Some(&layouts[1]), Some(&layouts[2])],
+            bind_group_layouts: &[
+                Some(&layouts[0]),
+                Some(&layouts[1]),
+                Some(&layouts[2]),
+                Some(scene_layout),
+            ],
             immediate_size: 0,
         });
         let module = shader::module(dev, "march", shader::MARCH);
@@ -219,6 +237,7 @@ impl MarchPass {
         enc: &mut wgpu::CommandEncoder,
         map_bind: &wgpu::BindGroup,
         target_bind: &wgpu::BindGroup,
+        scene_bind: &wgpu::BindGroup,
         (width, height): (u32, u32),
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
@@ -230,6 +249,7 @@ impl MarchPass {
         pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
         pass.set_bind_group(GROUP_MAP, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, target_bind, &[]);
+        pass.set_bind_group(super::shadow::SCENE_GROUP, scene_bind, &[]);
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
     }
 }

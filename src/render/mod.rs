@@ -1,13 +1,15 @@
 //! The wgpu cloud renderer (DESIGN §2–4): a CloudMap becomes volumetric cloud shells over a
 //! spherical Earth, lit by the Sun or Moon of the forecast's valid time.
 //!
-//! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `march`
-//! (compute ray march into a cloud texture), `present` (sky + composite + tone map). `weather`
+//! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
+//! full-column light volume, when the Sun or the map changes), `march` (compute ray march into a
+//! cloud texture), `exposure` (meters the frame), `present` (sky + composite + tone map). `weather`
 //! uploads the map, `frame` forms the uniforms, `camera` holds the geometry, `preset` the
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
 pub mod camera;
 pub mod contract;
+pub mod exposure;
 pub mod frame;
 pub mod gpu;
 pub mod march;
@@ -18,6 +20,7 @@ pub mod profile;
 pub mod readback;
 pub mod section;
 pub mod shader;
+pub mod shadow;
 pub mod stats;
 pub mod structure;
 pub mod weather;
@@ -80,8 +83,14 @@ pub struct Settings {
     pub hg_g: f32,
     /// Beer clamp ac (eq. 22) in 0..1: the floor ac·exp(−τ/4) under exp(−τ).
     pub beer_clamp: f32,
-    /// Exposure correction in stops over the automatic exposure.
+    /// Exposure in stops: over the scene-adapted exposure when `exposure_auto`, else over
+    /// [`frame::FIXED_EXPOSURE`] (fixed, for luminance comparisons).
     pub exposure_ev: f64,
+    /// The exposure adapts to the scene (metered by the exposure stage).
+    pub exposure_auto: bool,
+    /// Share of the way (in stops) toward the metered exposure a frame goes: 1 for a single
+    /// picture, less in the window so the eye adapts over a second or two.
+    pub exposure_rate: f32,
     /// Meteorological visibility (m) for the aerial haze (Koschmieder: β = 3.912 / V).
     pub visibility_m: f64,
     pub frame_index: u32,
@@ -113,6 +122,8 @@ impl Settings {
             hg_g: defaults::HG_G,
             beer_clamp: defaults::BEER_CLAMP,
             exposure_ev: defaults::EXPOSURE_EV,
+            exposure_auto: true,
+            exposure_rate: 1.0,
             visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
         }
@@ -135,6 +146,12 @@ impl Settings {
         }
         if !(0.0..=1.0).contains(&self.beer_clamp) {
             return bad(format!("Beer clamp ac {} must be in 0..1", self.beer_clamp));
+        }
+        if !(self.exposure_rate > 0.0 && self.exposure_rate <= 1.0) {
+            return bad(format!(
+                "exposure adaptation rate {} must be in (0, 1]",
+                self.exposure_rate
+            ));
         }
         if !self.exposure_ev.is_finite() || self.exposure_ev.abs() > 30.0 {
             return bad(format!(
@@ -221,6 +238,7 @@ struct Targets {
     color: Option<wgpu::Texture>,
     march_bind: wgpu::BindGroup,
     present_bind: wgpu::BindGroup,
+    exposure_bind: wgpu::BindGroup,
     /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
     cut_mask: wgpu::Buffer,
 }
@@ -230,6 +248,7 @@ impl Targets {
         gpu: &Gpu,
         march: &march::MarchPass,
         present: &present::PresentPass,
+        exposure: &exposure::ExposurePass,
         (width, height): (u32, u32),
     ) -> Targets {
         let cloud = texture_2d(
@@ -248,6 +267,7 @@ impl Targets {
             height,
             march_bind: march.bind_target(gpu, &cloud_view, &cut_mask),
             present_bind: present.bind_target(gpu, &cloud_view),
+            exposure_bind: exposure.bind_target(gpu, &cloud_view),
             cloud,
             color: None,
             cut_mask,
@@ -298,6 +318,10 @@ pub struct Renderer {
     pub weather: weather::WeatherMap,
     march: march::MarchPass,
     present: present::PresentPass,
+    shadow: shadow::ShadowPass,
+    exposure: exposure::ExposurePass,
+    /// Counts the maps set, so the shadow volume knows when its map changed.
+    map_generation: u64,
     map_bind: wgpu::BindGroup,
     targets: Option<Targets>,
     timer: Option<stats::PassTimer>,
@@ -317,9 +341,13 @@ impl Renderer {
     pub fn new(gpu: Gpu, map: &CloudMap) -> Renderer {
         let noise = noise::NoiseTextures::generate(&gpu);
         let weather = weather::WeatherMap::upload(&gpu, map);
-        let march = march::MarchPass::new(&gpu, &noise);
-        let present = present::PresentPass::new(&gpu, &march.uniforms);
+        let scene_layout = shadow::scene_layout(&gpu.device);
+        let march = march::MarchPass::new(&gpu, &noise, &scene_layout);
+        let exposure = exposure::ExposurePass::new(&gpu, &march.uniforms, &scene_layout);
+        let present =
+            present::PresentPass::new(&gpu, &march.uniforms, &exposure.state, &scene_layout);
         let map_bind = march.bind_map(&gpu, &weather);
+        let shadow = shadow::ShadowPass::new(&gpu, &march, scene_layout, &map.meta.region);
         let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
         let stats = stats::StatsReader::new(&gpu);
         Renderer {
@@ -327,6 +355,9 @@ impl Renderer {
             weather,
             march,
             present,
+            shadow,
+            exposure,
+            map_generation: 0,
             map_bind,
             targets: None,
             timer,
@@ -347,6 +378,10 @@ impl Renderer {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
             self.made.map_textures += 1;
         }
+        if map.meta.region != self.meta.region {
+            self.shadow.set_region(&self.gpu, &map.meta.region);
+        }
+        self.map_generation += 1;
         self.meta = map.meta.clone();
     }
 
@@ -378,9 +413,10 @@ impl Renderer {
             self.made.targets += 1;
             self.targets = None;
         }
-        let (gpu, march, present) = (&self.gpu, &self.march, &self.present);
+        let (gpu, march, present, exposure) =
+            (&self.gpu, &self.march, &self.present, &self.exposure);
         self.targets
-            .get_or_insert_with(|| Targets::new(gpu, march, present, (width, height)))
+            .get_or_insert_with(|| Targets::new(gpu, march, present, exposure, (width, height)))
     }
 
     /// Record one frame into `enc`: the march at `width`×`height`, then the present pass into
@@ -419,9 +455,12 @@ impl Renderer {
             gpu,
             march,
             present,
+            shadow,
+            exposure,
             map_bind,
             targets: Some(t),
             timer,
+            map_generation,
             ..
         } = self
         else {
@@ -434,19 +473,37 @@ impl Renderer {
             0,
             bytemuck::bytes_of(&march::Counters::default()),
         );
+        shadow.update(
+            gpu,
+            enc,
+            march,
+            map_bind,
+            &uniforms,
+            settings.march.column_light,
+            *map_generation,
+        );
         enc.clear_buffer(&t.cut_mask, 0, None);
         let timer = timer.as_ref();
         march.encode(
             enc,
             map_bind,
             &t.march_bind,
+            shadow.scene_bind(),
             (width, height),
             timer.map(|q| q.compute_writes()),
         );
+        let params = exposure::ExposureParams {
+            ev_mul: 2f64.powf(settings.exposure_ev) as f32,
+            rate: settings.exposure_rate,
+            auto_on: u32::from(settings.exposure_auto),
+            _pad: 0,
+        };
+        exposure.encode(gpu, enc, &params, &t.exposure_bind, shadow.scene_bind());
         present.encode(
             enc,
             pipeline,
             &t.present_bind,
+            shadow.scene_bind(),
             target,
             timer.map(|q| q.render_writes()),
         );

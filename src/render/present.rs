@@ -6,9 +6,10 @@ use super::frame::FrameUniforms;
 use super::gpu::Gpu;
 use super::march::bind;
 use super::shader;
+use super::shadow::{SCENE_BINDINGS, SCENE_GROUP};
 
-/// Every binding of present.wgsl: the frame uniforms (the device's lifetime) and the march's
-/// cloud texture (the output size's).
+/// present.wgsl's own bindings: the frame uniforms (the device's lifetime), the march's cloud
+/// texture (the output size's) and the exposure stage's result (the device's).
 pub const BINDINGS: &[Binding] = &[
     contract::uniform::<FrameUniforms>(0, 0),
     Binding {
@@ -16,7 +17,17 @@ pub const BINDINGS: &[Binding] = &[
         binding: 0,
         resource: Resource::Texture2d { filterable: true },
     },
+    Binding {
+        group: 2,
+        binding: 0,
+        resource: Resource::StorageRead,
+    },
 ];
+
+/// Every binding of present.wgsl, with the scene's group (render::shadow).
+pub fn bindings() -> Vec<Binding> {
+    BINDINGS.iter().chain(SCENE_BINDINGS).copied().collect()
+}
 
 /// A present pipeline made by [`PresentPass::prepare`]; only it makes them, so one always
 /// names a pipeline that exists.
@@ -29,22 +40,49 @@ pub struct PresentPass {
     layouts: [wgpu::BindGroupLayout; 2],
     layout: wgpu::PipelineLayout,
     device_bind: wgpu::BindGroup,
+    exposure_bind: wgpu::BindGroup,
     pipelines: Vec<(wgpu::TextureFormat, wgpu::RenderPipeline)>,
 }
 
 impl PresentPass {
-    pub fn new(gpu: &Gpu, uniforms: &wgpu::Buffer) -> PresentPass {
+    pub fn new(
+        gpu: &Gpu,
+        uniforms: &wgpu::Buffer,
+        exposure: &wgpu::Buffer,
+        scene_layout: &wgpu::BindGroupLayout,
+    ) -> PresentPass {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::VERTEX;
         let layouts = [
             contract::layout(dev, "present: device", BINDINGS, 0, stage),
             contract::layout(dev, "present: target", BINDINGS, 1, stage),
         ];
+        // Read in the fragment stage only: a vertex stage may not see a storage buffer here.
+        let exposure_layout = contract::layout(
+            dev,
+            "present: exposure",
+            BINDINGS,
+            2,
+            wgpu::ShaderStages::FRAGMENT,
+        );
         let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("present"),
-            bind_group_layouts: &[Some(&layouts[0]), Some(&layouts[1])],
+            bind_group_layouts: &[
+                Some(&layouts[0]),
+                Some(&layouts[1]),
+                Some(&exposure_layout),
+                Some(scene_layout),
+            ],
             immediate_size: 0,
         });
+        let exposure_bind = bind(
+            dev,
+            "present: exposure",
+            &exposure_layout,
+            [wgpu::BindingResource::Buffer(
+                exposure.as_entire_buffer_binding(),
+            )],
+        );
         let device_bind = bind(
             dev,
             "present: device",
@@ -57,6 +95,7 @@ impl PresentPass {
             layouts,
             layout,
             device_bind,
+            exposure_bind,
             pipelines: Vec::new(),
         }
     }
@@ -113,6 +152,7 @@ impl PresentPass {
         enc: &mut wgpu::CommandEncoder,
         pipeline: PipelineId,
         target_bind: &wgpu::BindGroup,
+        scene_bind: &wgpu::BindGroup,
         target: &wgpu::TextureView,
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) {
@@ -136,6 +176,8 @@ impl PresentPass {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.device_bind, &[]);
         pass.set_bind_group(1, target_bind, &[]);
+        pass.set_bind_group(2, &self.exposure_bind, &[]);
+        pass.set_bind_group(SCENE_GROUP, scene_bind, &[]);
         pass.draw(0..3, 0..1);
     }
 }

@@ -57,6 +57,7 @@ impl Preset {
                 light_reach_m: 800.0,
                 early_exit: 0.05,
                 detail: false,
+                column_light: true,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -68,6 +69,7 @@ impl Preset {
                 light_reach_m: 800.0,
                 early_exit: 0.02,
                 detail: true,
+                column_light: true,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -79,6 +81,7 @@ impl Preset {
                 light_reach_m: 800.0,
                 early_exit: 0.01,
                 detail: true,
+                column_light: true,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -90,6 +93,7 @@ impl Preset {
                 light_reach_m: 800.0,
                 early_exit: 0.0,
                 detail: true,
+                column_light: true,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -149,6 +153,9 @@ pub struct MarchParams {
     pub early_exit: f32,
     /// Detail (erosion) noise on.
     pub detail: bool,
+    /// Full-column light and cloud shadows (render::shadow): the light beyond the short light
+    /// march, the sky through the column above, the ground in the clouds' shadows.
+    pub column_light: bool,
     pub shortcuts: Shortcuts,
 }
 

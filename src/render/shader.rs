@@ -1,5 +1,6 @@
-//! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front, and
-//! the stages that evaluate the cloud (march, section) with `cloud.wgsl` too.
+//! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front, the
+//! stages that evaluate the cloud (march, section, shadow) with `cloud.wgsl` too, and those that
+//! light or show the scene (march, present, exposure) with `scene.wgsl`.
 
 pub const NOISE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -8,7 +9,18 @@ pub const NOISE: &str = concat!(
 pub const MARCH: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/cloud.wgsl"),
+    include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/march.wgsl")
+);
+pub const SHADOW: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/cloud.wgsl"),
+    include_str!("../../shaders/shadow.wgsl")
+);
+pub const EXPOSURE: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/scene.wgsl"),
+    include_str!("../../shaders/exposure.wgsl")
 );
 pub const SECTION: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -17,6 +29,7 @@ pub const SECTION: &str = concat!(
 );
 pub const PRESENT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/present.wgsl")
 );
 
@@ -39,6 +52,8 @@ mod tests {
             ("march", MARCH),
             ("section", SECTION),
             ("present", PRESENT),
+            ("shadow", SHADOW),
+            ("exposure", EXPOSURE),
         ] {
             let module = naga::front::wgsl::parse_str(src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));

@@ -1,0 +1,57 @@
+// Exposure stage: meters the frame as the present stage will show it (cloud over background,
+// before the tone curve) on a 64×64 grid, and adapts the exposure toward a mid-grey key for the
+// log-mean luminance, within ±3 EV of the Sun's-height exposure the CPU gives (Frame.exposure):
+// an eye under an overcast opens up, but night stays night (DESIGN §8). One workgroup.
+
+@group(0) @binding(0) var<uniform> f: Frame;
+@group(1) @binding(0) var cloud: texture_2d<f32>;
+@group(2) @binding(0) var<storage, read_write> exposure: ExposureState;
+@group(2) @binding(1) var<uniform> ep: ExposureParams;
+
+// Meter grid side, and the samples each of the 256 invocations takes.
+const METER: u32 = 64u;
+const PER_LANE: u32 = 16u;
+// The luminance the log-mean is exposed to, and how far adaptation may go from the anchor.
+const KEY: f32 = 0.18;
+const RANGE: f32 = 8.0;
+
+var<workgroup> sums: array<f32, 256>;
+
+@compute @workgroup_size(256, 1, 1)
+fn main(@builtin(local_invocation_index) li: u32) {
+    let dims = vec2<i32>(textureDimensions(cloud));
+    var s = 0.0;
+    for (var k = 0u; k < PER_LANE; k++) {
+        let i = li * PER_LANE + k;
+        let uv = (vec2<f32>(f32(i % METER), f32(i / METER)) + 0.5) / f32(METER);
+        let c = textureLoad(cloud, clamp(vec2<i32>(uv * vec2<f32>(dims)), vec2<i32>(0), dims - 1), 0);
+        let bg = background(persp_dir(f, uv * f.out_size));
+        s += log(max(luminance(bg * (1.0 - c.a) + c.rgb), 1e-12));
+    }
+    sums[li] = s;
+    workgroupBarrier();
+    for (var w = 128u; w > 0u; w = w >> 1u) {
+        if (li < w) {
+            sums[li] += sums[li + w];
+        }
+        workgroupBarrier();
+    }
+    if (li == 0u) {
+        let log_mean = sums[0] / f32(METER * METER);
+        exposure.metered = log_mean;
+        if (ep.auto_on == 0u || has_flag(f, FLAG_NO_SKY)) {
+            exposure.value = f.exposure;
+            exposure.adapted = f.exposure / ep.ev_mul;
+            return;
+        }
+        let anchor = f.exposure / ep.ev_mul;
+        let want = clamp(KEY / exp(log_mean), anchor / RANGE, anchor * RANGE);
+        var e = want;
+        if (ep.rate < 1.0 && exposure.adapted > 0.0) {
+            // Adapt in stops, as the eye does.
+            e = exp(mix(log(exposure.adapted), log(want), ep.rate));
+        }
+        exposure.adapted = e;
+        exposure.value = e * ep.ev_mul;
+    }
+}

@@ -1,0 +1,99 @@
+// The scene around the cloud, shared by the stages that light it or show it (march, present,
+// exposure; prepended after common.wgsl): the full-column optical-depth volume the shadow stage
+// made (render::shadow), the light that comes through it, and the background a view ray meets
+// where there is no cloud (sky, Sun, Moon, stars, ground in the clouds' shadows).
+@group(3) @binding(0) var od_tex: texture_3d<f32>;
+@group(3) @binding(1) var od_sampler: sampler;
+@group(3) @binding(2) var<uniform> sh: ShadowParams;
+
+// Asymmetry of cloud droplets' scattering, for the diffuse (two-stream) light (DESIGN §8).
+const G_CLOUD: f32 = 0.85;
+
+// Optical depth of the cloud column from a point at altitude h: x toward the key light, y
+// straight up (the volume's mean, smooth). Zero outside the region and above the volume.
+fn column_od(pos: vec3<f32>, h: f32) -> vec2<f32> {
+    if (sh.enabled == 0u) {
+        return vec2<f32>(0.0);
+    }
+    let uv = region_uv(f, lat_lon(pos));
+    let w = (h - sh.bottom_m) / max(sh.top_m - sh.bottom_m, 1.0);
+    if (uv.x < 0.0 || w >= 1.0) {
+        return vec2<f32>(0.0);
+    }
+    return textureSampleLevel(od_tex, od_sampler, vec3<f32>(uv, max(w, 0.0)), 0.0).rg;
+}
+
+// Two-stream diffuse transmittance of a cloud of optical depth tau (DESIGN §8): the share of
+// the light that comes through a deck by multiple scattering, 1/(1 + ¾(1 − g)τ).
+fn diffuse_t(tau: f32) -> f32 {
+    return 1.0 / (1.0 + 0.75 * (1.0 - G_CLOUD) * tau);
+}
+
+// The key light's irradiance factor through a column of optical depth tau along its path, at a
+// cosine mu0 to the local vertical: the direct beam (Beer) or, under thick cloud, the diffuse
+// light a plane-parallel deck of vertical depth tau·mu0 lets through, whichever is more.
+fn key_through(tau: f32, mu0: f32) -> f32 {
+    return max(exp(-tau), diffuse_t(tau * max(mu0, 0.1)));
+}
+
+// Ground albedo where the map has no ground (a dull land).
+const DEFAULT_ALBEDO: vec3<f32> = vec3<f32>(0.08, 0.10, 0.07);
+
+// Irradiance on level ground at p (unit up n, altitude hg) over π: the Sun or Moon through the
+// clouds' column, and the sky through the column above.
+fn ground_irradiance(p: vec3<f32>, n: vec3<f32>, hg: f32) -> vec3<f32> {
+    let od = column_od(p, hg);
+    let sun_mu = max(dot(n, f.sun_dir), 0.0);
+    let moon_mu = max(dot(n, f.moon_dir), 0.0);
+    let key = select(key_through(od.x, moon_mu), key_through(od.x, sun_mu), f.sun_is_key != 0u);
+    let other = diffuse_t(od.y);
+    let sun_t = select(other, key, f.sun_is_key != 0u);
+    let moon_t = select(key, other, f.sun_is_key != 0u);
+    let direct = f.sun_col * sun_mu * SUN_I * 0.25 * sun_t + f.moon_col * moon_mu * SUN_I * 0.25 * moon_t;
+    return direct + sky_radiance(f, n, n) * diffuse_t(od.y);
+}
+
+fn hash2(p: vec2<f32>) -> f32 {
+    return fract(sin(dot(p, vec2<f32>(127.1, 311.7))) * 43758.5453);
+}
+
+// Stars: a sparse fixed field in ECEF direction space, visible once the sky is dark enough.
+fn stars(v: vec3<f32>) -> vec3<f32> {
+    let ll = lat_lon(v);
+    let cell = floor(vec2<f32>(ll.x * 2.0, ll.y * 2.0 * cos(radians(ll.x))));
+    let h = hash2(cell);
+    if (h > 0.985) {
+        return vec3<f32>(1.0, 0.95, 0.9) * (h - 0.985) * 2e-7;
+    }
+    return vec3<f32>(0.0);
+}
+
+// Ordered so a narrow sliver of each disc does not alias: a soft edge over 10 % of the radius.
+fn disc(v: vec3<f32>, dir: vec3<f32>, radius_rad: f32) -> f32 {
+    let ang = acos(clamp(dot(v, dir), -1.0, 1.0));
+    return 1.0 - smoothstep(radius_rad * 0.9, radius_rad * 1.1, ang);
+}
+
+// What a view ray from the camera meets where there is no cloud.
+fn background(v: vec3<f32>) -> vec3<f32> {
+    let up = f.cam_up;
+    let h = f.cam_alt_m;
+    let mu = dot(v, up);
+    let ground = shell_hits(h, mu, 0.0);
+    if (ground.x <= ground.y && ground.y > 0.0) {
+        // Ground: its albedo under Sun and sky through the clouds, fading into the haze.
+        let t = max(ground.x, 0.0);
+        let p = up * (EARTH_R + h) + v * t;
+        let n = normalize(p);
+        let lit = DEFAULT_ALBEDO * ground_irradiance(p, n, 0.0);
+        let fog = haze_transmittance(f, h, 0.0, t);
+        return lit * fog + sky_radiance(f, v, up) * (1.0 - fog);
+    }
+    var c = sky_radiance(f, v, up);
+    let above = smoothstep(-0.01, 0.01, mu);
+    c += f.sun_col * disc(v, f.sun_dir, 0.0047) * 2e4 * above;
+    c += f.moon_col * disc(v, f.moon_dir, 0.0045) * 2e4 * above;
+    let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir, up));
+    c += stars(v) * dark * above;
+    return c;
+}

@@ -1,0 +1,409 @@
+//! Shadow stage: dispatches shaders/shadow.wgsl, the full-column light (DESIGN §8). A volume
+//! over the map's region (uv × altitude) holds, per texel, the cloud's mean optical depth from
+//! there to the top of the cloud toward the key light and straight up. The march lights its
+//! samples with it beyond the short light march, its ambient sees the sky through it, and the
+//! ground takes the clouds' shadows from it. It is made again only when the key light moves,
+//! the map changes or the look does, never for the camera alone.
+//!
+//! It also owns the scene's bind group (group 3: the volume, its sampler and parameters) that
+//! the march, present and exposure stages share (shaders/scene.wgsl).
+
+use super::contract::{self, Binding, Resource};
+use super::frame::FrameUniforms;
+use super::gpu::Gpu;
+use super::march::{bind, MarchPass, GROUP_TARGET};
+use super::shader;
+use stratus_ingest::region::Region;
+
+crate::gpu_struct! {
+    /// The volume's parameters (`ShadowParams` in shaders/common.wgsl).
+    pub struct ShadowParams as "ShadowParams" {
+        /// Toward the key light the volume was made for (ECEF unit vector).
+        pub key_dir: [f32; 3],
+        /// Altitude of the volume's bottom face (m).
+        pub bottom_m: f32,
+        /// Altitude of its top face (m): the top of the highest drawn cloud.
+        pub top_m: f32,
+        /// 0 when the preset's switch is off: every look-up gives no cloud.
+        pub enabled: u32,
+        /// Samples per path.
+        pub steps: u32,
+        /// Longest path toward the key light (m).
+        pub max_path_m: f32,
+    }
+}
+
+pub const VOLUME_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// Texels along the region's longer side (the other side in proportion, in kilometres).
+pub const MAX_SIDE: u32 = 128;
+/// Altitude levels.
+pub const LEVELS: u32 = 32;
+/// Samples per path toward the key light and per column.
+pub const STEPS: u32 = 32;
+/// A low Sun's path is cut here: beyond it a 16 km deep shell is crossed at under 2°.
+pub const MAX_PATH_M: f32 = 600_000.0;
+/// The key light may move this far (degrees) before the volume is made again.
+pub const REBUILD_DEG: f64 = 0.25;
+
+/// The scene's group, shared by march.wgsl, present.wgsl and exposure.wgsl (scene.wgsl).
+pub const SCENE_GROUP: u32 = 3;
+pub const SCENE_BINDINGS: &[Binding] = &[
+    Binding {
+        group: SCENE_GROUP,
+        binding: 0,
+        resource: Resource::Texture3d,
+    },
+    Binding {
+        group: SCENE_GROUP,
+        binding: 1,
+        resource: Resource::Sampler,
+    },
+    contract::uniform::<ShadowParams>(SCENE_GROUP, 2),
+];
+
+/// shadow.wgsl's own bindings (groups 0 and 1 are the march's).
+pub const OWN_BINDINGS: &[Binding] = &[
+    Binding {
+        group: GROUP_TARGET,
+        binding: 0,
+        resource: Resource::StorageTexture(VOLUME_FORMAT, 3),
+    },
+    contract::uniform::<ShadowParams>(GROUP_TARGET, 1),
+];
+
+/// Every binding of shadow.wgsl.
+pub fn bindings() -> Vec<Binding> {
+    super::march::BINDINGS
+        .iter()
+        .filter(|b| b.group != GROUP_TARGET)
+        .chain(OWN_BINDINGS)
+        .copied()
+        .collect()
+}
+
+/// The scene group's layout, visible to every stage that shares it.
+pub fn scene_layout(dev: &wgpu::Device) -> wgpu::BindGroupLayout {
+    contract::layout(
+        dev,
+        "scene",
+        SCENE_BINDINGS,
+        SCENE_GROUP,
+        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::VERTEX,
+    )
+}
+
+/// Volume size for a region: [`MAX_SIDE`] along its longer side in kilometres.
+pub fn volume_size(region: &Region) -> (u32, u32, u32) {
+    let (lat, _) = region.centre();
+    let wide = region.lon_span() * lat.to_radians().cos().max(0.05);
+    let tall = (region.north - region.south).max(1e-6);
+    let side = |a: f64, b: f64| ((MAX_SIDE as f64 * (a / b).min(1.0)).round() as u32).max(8);
+    (side(wide, tall), side(tall, wide), LEVELS)
+}
+
+/// What the volume depends on: it is made again when any of these change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Inputs {
+    key_dir: [f32; 3],
+    look: [f32; 24],
+    flags: u32,
+    map_generation: u64,
+}
+
+impl Inputs {
+    fn of(u: &FrameUniforms, key_dir: [f32; 3], map_generation: u64) -> Inputs {
+        let mut look = [0.0; 24];
+        let vals = [
+            u.region_south,
+            u.region_north,
+            u.region_west,
+            u.region_lon_span,
+            u.shell_base_m,
+            u.shell_top_m,
+            u.coverage_mul,
+            u.density_mul,
+            u.extinction,
+            u.tower_base_m,
+            u.tower_top_m,
+            u.st_scale[0],
+            u.st_scale[1],
+            u.st_offset[0],
+            u.st_offset[1],
+        ]
+        .into_iter()
+        .chain(u.layer_base)
+        .chain(u.layer_top)
+        .chain(u.layer_scale);
+        for (l, v) in look.iter_mut().zip(vals) {
+            *l = v;
+        }
+        // Only the flags that change the cloud itself.
+        use super::frame::flags;
+        let shape = flags::STRUCTURE | flags::TOWERS | flags::STREAKS | flags::CULL;
+        Inputs {
+            key_dir,
+            look,
+            flags: u.flags & shape,
+            map_generation,
+        }
+    }
+
+    fn needs_rebuild(&self, last: &Inputs) -> bool {
+        let d = |a: [f32; 3]| glam::Vec3::from(a);
+        let moved = d(self.key_dir).dot(d(last.key_dir)) < (REBUILD_DEG.to_radians().cos() as f32);
+        moved
+            || self.look != last.look
+            || self.flags != last.flags
+            || self.map_generation != last.map_generation
+    }
+}
+
+pub struct ShadowPass {
+    pipeline: wgpu::ComputePipeline,
+    own_layout: wgpu::BindGroupLayout,
+    scene_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    params: wgpu::Buffer,
+    size: (u32, u32, u32),
+    volume: wgpu::Texture,
+    own_bind: wgpu::BindGroup,
+    scene_bind: wgpu::BindGroup,
+    last: Option<Inputs>,
+    /// Volumes made so far (a test checks a camera move makes none).
+    pub builds: u32,
+}
+
+impl ShadowPass {
+    pub fn new(
+        gpu: &Gpu,
+        march: &MarchPass,
+        scene_layout: wgpu::BindGroupLayout,
+        region: &Region,
+    ) -> ShadowPass {
+        let dev = &gpu.device;
+        let own_layout = contract::layout(
+            dev,
+            "shadow: own",
+            OWN_BINDINGS,
+            GROUP_TARGET,
+            wgpu::ShaderStages::COMPUTE,
+        );
+        let [device_layout, map_layout] = march.shared_layouts();
+        let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("shadow"),
+            bind_group_layouts: &[Some(device_layout), Some(map_layout), Some(&own_layout)],
+            immediate_size: 0,
+        });
+        let module = shader::module(dev, "shadow", shader::SHADOW);
+        let mean = [("MEAN_DENSITY", 1.0)];
+        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("shadow"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &mean,
+                ..Default::default()
+            },
+            cache: None,
+        });
+        let params = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shadow params"),
+            size: std::mem::size_of::<ShadowParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shadow volume"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let size = volume_size(region);
+        let (volume, own_bind, scene_bind) =
+            Self::make_volume(gpu, size, &own_layout, &scene_layout, &sampler, &params);
+        ShadowPass {
+            pipeline,
+            own_layout,
+            scene_layout,
+            sampler,
+            params,
+            size,
+            volume,
+            own_bind,
+            scene_bind,
+            last: None,
+            builds: 0,
+        }
+    }
+
+    fn make_volume(
+        gpu: &Gpu,
+        (w, h, d): (u32, u32, u32),
+        own_layout: &wgpu::BindGroupLayout,
+        scene_layout: &wgpu::BindGroupLayout,
+        sampler: &wgpu::Sampler,
+        params: &wgpu::Buffer,
+    ) -> (wgpu::Texture, wgpu::BindGroup, wgpu::BindGroup) {
+        let dev = &gpu.device;
+        let volume = dev.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow volume"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: d,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: VOLUME_FORMAT,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let view = volume.create_view(&Default::default());
+        use wgpu::BindingResource as R;
+        let own = bind(
+            dev,
+            "shadow: own",
+            own_layout,
+            [
+                R::TextureView(&view),
+                R::Buffer(params.as_entire_buffer_binding()),
+            ],
+        );
+        let scene = bind(
+            dev,
+            "scene",
+            scene_layout,
+            [
+                R::TextureView(&view),
+                R::Sampler(sampler),
+                R::Buffer(params.as_entire_buffer_binding()),
+            ],
+        );
+        (volume, own, scene)
+    }
+
+    /// A new map's region: a volume of its size (the old one when the size is the same).
+    pub fn set_region(&mut self, gpu: &Gpu, region: &Region) {
+        let size = volume_size(region);
+        if size != self.size {
+            (self.volume, self.own_bind, self.scene_bind) = Self::make_volume(
+                gpu,
+                size,
+                &self.own_layout,
+                &self.scene_layout,
+                &self.sampler,
+                &self.params,
+            );
+            self.size = size;
+        }
+        self.last = None;
+    }
+
+    pub fn scene_bind(&self) -> &wgpu::BindGroup {
+        &self.scene_bind
+    }
+
+    /// The volume's bytes on the GPU.
+    pub fn volume_bytes(&self) -> u64 {
+        let (w, h, d) = self.size;
+        w as u64 * h as u64 * d as u64 * 8
+    }
+
+    /// Make the volume for this frame's uniforms (already written to the march's uniform
+    /// buffer before `enc` runs) if what it depends on changed; `enabled` is the preset's
+    /// switch. Returns whether it was made.
+    #[allow(clippy::too_many_arguments)]
+    pub fn update(
+        &mut self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        march: &MarchPass,
+        map_bind: &wgpu::BindGroup,
+        u: &FrameUniforms,
+        enabled: bool,
+        map_generation: u64,
+    ) -> bool {
+        let key_dir = if u.sun_is_key != 0 {
+            u.sun_dir
+        } else {
+            u.moon_dir
+        };
+        let inputs = Inputs::of(u, key_dir, map_generation);
+        let params = ShadowParams {
+            key_dir,
+            bottom_m: 0.0,
+            top_m: u.shell_top_m.clamp(1000.0, 100_000.0),
+            enabled: u32::from(enabled && u.shell_top_m < 1.0e5),
+            steps: STEPS,
+            max_path_m: MAX_PATH_M,
+        };
+        let stale = self
+            .last
+            .as_ref()
+            .is_none_or(|last| inputs.needs_rebuild(last));
+        if !stale {
+            return false;
+        }
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.last = Some(inputs);
+        if params.enabled == 0 {
+            return false;
+        }
+        let (w, h, d) = self.size;
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("shadow"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, march.device_bind(), &[]);
+        pass.set_bind_group(1, map_bind, &[]);
+        pass.set_bind_group(GROUP_TARGET, &self.own_bind, &[]);
+        pass.dispatch_workgroups(w.div_ceil(4), h.div_ceil(4), d.div_ceil(4));
+        self.builds += 1;
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn volume_follows_the_region_in_kilometres() {
+        // East Asia: 66° of longitude at 27.5°N is wider than 55° of latitude.
+        let ea = Region::parse("0,55,39,105").unwrap();
+        let (w, h, d) = volume_size(&ea);
+        assert_eq!(w, MAX_SIDE);
+        assert!(h < w && h > 100, "{w}×{h}");
+        assert_eq!(d, LEVELS);
+        // A thin sliver still gets a usable volume.
+        let thin = Region::parse("10,10.5,0,60").unwrap();
+        let (w, h, _) = volume_size(&thin);
+        assert_eq!((w, h), (MAX_SIDE, 8));
+    }
+
+    #[test]
+    fn only_the_key_light_and_the_look_rebuild() {
+        let u = FrameUniforms::default();
+        let a = Inputs::of(&u, [0.0, 0.0, 1.0], 1);
+        // A key light moved by 0.1° is the same volume; by 1° it is not.
+        let small = (0.1f32).to_radians();
+        let b = Inputs::of(&u, [small.sin(), 0.0, small.cos()], 1);
+        assert!(!b.needs_rebuild(&a));
+        let big = (1.0f32).to_radians();
+        let c = Inputs::of(&u, [big.sin(), 0.0, big.cos()], 1);
+        assert!(c.needs_rebuild(&a));
+        // Camera fields do not count; the coverage multiplier and a new map do.
+        let mut moved = u;
+        moved.cam_alt_m = 9000.0;
+        moved.cam_fwd = [1.0, 0.0, 0.0];
+        assert!(!Inputs::of(&moved, [0.0, 0.0, 1.0], 1).needs_rebuild(&a));
+        let mut denser = u;
+        denser.coverage_mul = 1.5;
+        assert!(Inputs::of(&denser, [0.0, 0.0, 1.0], 1).needs_rebuild(&a));
+        assert!(Inputs::of(&u, [0.0, 0.0, 1.0], 2).needs_rebuild(&a));
+    }
+}
