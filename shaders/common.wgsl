@@ -174,8 +174,9 @@ fn luminance(c: vec3<f32>) -> f32 {
 }
 
 // Clear-sky radiance seen along direction v from a point with local up `up`: a Rayleigh-blue
-// dome brighter toward the horizon, Mie glow around the Sun, twilight that outlasts sunset, a
-// faint airglow at night and the Moon's glow. Not a full scattering model; see docs/renderer.md.
+// dome brighter toward the horizon, Mie glow around the Sun, twilight that outlasts sunset, and
+// the night's. An analytic stand-in for the atmosphere's tables (render::atmosphere), used for
+// the ambient light of cloud and ground anywhere in the region (the tables are the camera's).
 fn sky_radiance(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
     let s = f.sun_dir;
     let sun_el = dot(s, up);
@@ -187,13 +188,35 @@ fn sky_radiance(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
     var c = mix(zenith, horizon_col, horizon_w) * day * 0.5;
     let cos_s = dot(v, s);
     c += f.sun_col * (hg(cos_s, 0.76) * 0.08 + hg(cos_s, 0.3) * 0.05);
-    // Night: faint airglow (about 1/250 of full-moon light) and the moonlit sky.
+    return c + night_sky(f, v, up);
+}
+
+// The night's sky: a faint airglow (about 1/250 of full-moon light) and the moonlit sky.
+fn night_sky(f: Frame, v: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
+    let horizon_w = pow(1.0 - max(dot(v, up), 0.0), 4.0);
     let m = f.moon_dir;
     let moon_up = smoothstep(-0.05, 0.05, dot(m, up));
-    c += vec3<f32>(0.3, 0.4, 0.6) * 1e-8 * (1.0 + horizon_w);
+    var c = vec3<f32>(0.3, 0.4, 0.6) * 1e-8 * (1.0 + horizon_w);
     c += f.moon_col * moon_up * (mix(vec3<f32>(0.10, 0.19, 0.40), vec3<f32>(0.3, 0.36, 0.45), horizon_w)
         + vec3<f32>(hg(dot(v, m), 0.76) * 0.08));
     return c;
+}
+
+// The sky-view table's frame at the camera: horizontal toward the Sun, and 90° left of it.
+fn sky_frame(f: Frame) -> array<vec3<f32>, 2> {
+    let up = f.cam_up;
+    let s = f.sun_dir - up * dot(f.sun_dir, up);
+    var x = f.cam_right - up * dot(f.cam_right, up);
+    if (dot(s, s) > 1e-8) {
+        x = s;
+    }
+    x = normalize(x);
+    return array<vec3<f32>, 2>(x, cross(up, x));
+}
+
+// Elevation of the horizon seen from altitude h (radians, ≤ 0).
+fn horizon_elev(h: f32) -> f32 {
+    return -acos(clamp(EARTH_R / (EARTH_R + max(h, 0.0)), -1.0, 1.0));
 }
 
 // Perspective view direction through pixel position px (pixel units, centre = +0.5).

@@ -1,7 +1,9 @@
 // Exposure stage: meters the frame as the present stage will show it (cloud over background,
 // before the tone curve) on a 64×64 grid, and adapts the exposure toward a mid-grey key for the
-// log-mean luminance, within ±3 EV of the Sun's-height exposure the CPU gives (Frame.exposure):
-// an eye under an overcast opens up, but night stays night (DESIGN §8). One workgroup.
+// log-mean luminance, from 2 EV under to 3 EV over the Sun's-height exposure the CPU gives
+// (Frame.exposure): an eye under an overcast opens up, a bright deck from above stays bright
+// (as snow does), and dusk and night stay dark (no opening up once the Sun is down; DESIGN §8).
+// One workgroup.
 
 @group(0) @binding(0) var<uniform> f: Frame;
 @group(1) @binding(0) var cloud: texture_2d<f32>;
@@ -13,7 +15,8 @@ const METER: u32 = 64u;
 const PER_LANE: u32 = 16u;
 // The luminance the log-mean is exposed to, and how far adaptation may go from the anchor.
 const KEY: f32 = 0.18;
-const RANGE: f32 = 8.0;
+const DARKER: f32 = 4.0;
+const BRIGHTER: f32 = 8.0;
 
 var<workgroup> sums: array<f32, 256>;
 
@@ -45,7 +48,9 @@ fn main(@builtin(local_invocation_index) li: u32) {
             return;
         }
         let anchor = f.exposure / ep.ev_mul;
-        let want = clamp(KEY / exp(log_mean), anchor / RANGE, anchor * RANGE);
+        // Opening up only by day, so dusk and night stay dark; stopping down always.
+        let day = smoothstep(-0.02, 0.1, dot(f.sun_dir, f.cam_up));
+        let want = clamp(KEY / exp(log_mean), anchor / DARKER, anchor * mix(1.0, BRIGHTER, day));
         var e = want;
         if (ep.rate < 1.0 && exposure.adapted > 0.0) {
             // Adapt in stops, as the eye does.

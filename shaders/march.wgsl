@@ -273,7 +273,9 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
         ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
         let mu0 = max(dot(key, up), 0.1);
-        ms = max(ms, diffuse_t(tau * mu0) * mu0 / PI);
+        // The octaves hold the first few optical depths (the relief's light and shade); the
+        // two-stream takes over by τ ≈ 10, where they have faded.
+        ms = max(ms, diffuse_t(tau * mu0) * mu0 / PI * sat(tau / 10.0));
         let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
         // Ambient: the sky through the column above (the volume's mean, smooth, never one noise
         // look-up), and the ground's light from below.
@@ -307,7 +309,7 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         // Aerial haze (Koschmieder) toward the opacity-weighted cloud distance.
         let dist = depth_w / alpha;
         let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
-        let haze = sky_radiance(f, r.d, r.up);
+        let haze = sky_seen(r.d);
         col = col * fog + haze * alpha * (1.0 - fog);
     }
     return vec4<f32>(col, alpha);

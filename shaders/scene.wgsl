@@ -5,6 +5,8 @@
 @group(3) @binding(0) var od_tex: texture_3d<f32>;
 @group(3) @binding(1) var od_sampler: sampler;
 @group(3) @binding(2) var<uniform> sh: ShadowParams;
+// The sky around the camera (render::atmosphere's sky-view table).
+@group(3) @binding(3) var sky_tex: texture_2d<f32>;
 
 // Asymmetry of cloud droplets' scattering, for the diffuse (two-stream) light (DESIGN §8).
 const G_CLOUD: f32 = 0.85;
@@ -74,6 +76,46 @@ fn disc(v: vec3<f32>, dir: vec3<f32>, radius_rad: f32) -> f32 {
     return 1.0 - smoothstep(radius_rad * 0.9, radius_rad * 1.1, ang);
 }
 
+// Where direction v falls in the sky-view table.
+fn sky_view_uv(v: vec3<f32>) -> vec2<f32> {
+    let up = f.cam_up;
+    let fr = sky_frame(f);
+    let el = asin(clamp(dot(v, up), -1.0, 1.0));
+    let eh = horizon_elev(f.cam_alt_m);
+    var y = 0.0;
+    if (el >= eh) {
+        y = 0.5 + 0.5 * sqrt(sat((el - eh) / (0.5 * PI - eh)));
+    } else {
+        y = 0.5 - 0.5 * sqrt(sat((eh - el) / (eh + 0.5 * PI)));
+    }
+    let x = atan2(dot(v, fr[1]), dot(v, fr[0])) / (2.0 * PI) + 0.5;
+    return vec2<f32>(x, y);
+}
+
+// The sky seen from the camera along v: the atmosphere's table by day and twilight (Earth's
+// shadow and all), the night's moonlit sky and airglow over it.
+fn sky_seen(v: vec3<f32>) -> vec3<f32> {
+    let day = textureSampleLevel(sky_tex, od_sampler, sky_view_uv(v), 0.0).rgb;
+    return day + night_sky(f, v, f.cam_up);
+}
+
+// The Moon's disc lit by the Sun: its phase is the lit part of a sphere whose visible face
+// looks back at the camera.
+fn moon_disc(v: vec3<f32>) -> vec3<f32> {
+    let m = f.moon_dir;
+    let radius = 0.0045;
+    let inside = disc(v, m, radius);
+    if (inside <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let off = (v - m * dot(v, m)) / radius;
+    let n = normalize(off - m * sqrt(max(1.0 - dot(off, off), 0.0)));
+    let lit = max(dot(n, f.sun_dir), 0.0);
+    // moon_col is the Moon's light at the ground, in proportion to its lit fraction.
+    let phase = max(0.5 * (1.0 - dot(f.sun_dir, m)), 0.02);
+    return f.moon_col / phase * (0.02 + lit) * inside * 2e4;
+}
+
 // What a view ray from the camera meets where there is no cloud.
 fn background(v: vec3<f32>) -> vec3<f32> {
     let up = f.cam_up;
@@ -87,12 +129,12 @@ fn background(v: vec3<f32>) -> vec3<f32> {
         let n = normalize(p);
         let lit = DEFAULT_ALBEDO * ground_irradiance(p, n, 0.0);
         let fog = haze_transmittance(f, h, 0.0, t);
-        return lit * fog + sky_radiance(f, v, up) * (1.0 - fog);
+        return lit * fog + sky_seen(v) * (1.0 - fog);
     }
-    var c = sky_radiance(f, v, up);
+    var c = sky_seen(v);
     let above = smoothstep(-0.01, 0.01, mu);
     c += f.sun_col * disc(v, f.sun_dir, 0.0047) * 2e4 * above;
-    c += f.moon_col * disc(v, f.moon_dir, 0.0045) * 2e4 * above;
+    c += moon_disc(v) * above;
     let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir, up));
     c += stars(v) * dark * above;
     return c;

@@ -487,7 +487,7 @@ mod tests {
     }
 
     fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
-        use super::super::{exposure, march, noise, present, section, shader, shadow};
+        use super::super::{atmosphere, exposure, march, noise, present, section, shader, shadow};
         // The section's table is the march's groups 0 and 1 and its own: made once, kept (the
         // same for the stages that add the scene's group).
         static SECTION: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
@@ -497,6 +497,7 @@ mod tests {
         static EXPOSURE: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
         vec![
             ("noise", shader::NOISE, noise::BINDINGS),
+            ("atmosphere", shader::ATMOSPHERE, atmosphere::BINDINGS),
             (
                 "march",
                 shader::MARCH,
@@ -562,7 +563,10 @@ mod tests {
     /// The check itself can fail: each kind of slip is caught.
     #[test]
     fn the_check_catches_each_kind_of_slip() {
-        let (stage, src, table) = stages()[1];
+        let (stage, src, table) = stages()
+            .into_iter()
+            .find(|s| s.0 == "march")
+            .expect("the march stage");
         assert!(all_diffs(stage, src, table).is_empty());
         let slips = [
             // A renamed field.

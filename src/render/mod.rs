@@ -2,11 +2,13 @@
 //! spherical Earth, lit by the Sun or Moon of the forecast's valid time.
 //!
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
-//! full-column light volume, when the Sun or the map changes), `march` (compute ray march into a
+//! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
+//! `march` (compute ray march into a
 //! cloud texture), `exposure` (meters the frame), `present` (sky + composite + tone map). `weather`
 //! uploads the map, `frame` forms the uniforms, `camera` holds the geometry, `preset` the
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
+pub mod atmosphere;
 pub mod camera;
 pub mod contract;
 pub mod exposure;
@@ -319,6 +321,7 @@ pub struct Renderer {
     march: march::MarchPass,
     present: present::PresentPass,
     shadow: shadow::ShadowPass,
+    atmosphere: atmosphere::AtmospherePass,
     exposure: exposure::ExposurePass,
     /// Counts the maps set, so the shadow volume knows when its map changed.
     map_generation: u64,
@@ -347,7 +350,14 @@ impl Renderer {
         let present =
             present::PresentPass::new(&gpu, &march.uniforms, &exposure.state, &scene_layout);
         let map_bind = march.bind_map(&gpu, &weather);
-        let shadow = shadow::ShadowPass::new(&gpu, &march, scene_layout, &map.meta.region);
+        let atmosphere = atmosphere::AtmospherePass::new(&gpu, &march.uniforms);
+        let shadow = shadow::ShadowPass::new(
+            &gpu,
+            &march,
+            scene_layout,
+            &map.meta.region,
+            atmosphere.sky_view().create_view(&Default::default()),
+        );
         let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
         let stats = stats::StatsReader::new(&gpu);
         Renderer {
@@ -356,6 +366,7 @@ impl Renderer {
             march,
             present,
             shadow,
+            atmosphere,
             exposure,
             map_generation: 0,
             map_bind,
@@ -456,6 +467,7 @@ impl Renderer {
             march,
             present,
             shadow,
+            atmosphere,
             exposure,
             map_bind,
             targets: Some(t),
@@ -473,6 +485,7 @@ impl Renderer {
             0,
             bytemuck::bytes_of(&march::Counters::default()),
         );
+        atmosphere.update(enc, &uniforms);
         shadow.update(
             gpu,
             enc,

@@ -17,6 +17,10 @@ pub const SHADOW: &str = concat!(
     include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/shadow.wgsl")
 );
+pub const ATMOSPHERE: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/atmosphere.wgsl")
+);
 pub const EXPOSURE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
@@ -54,6 +58,7 @@ mod tests {
             ("present", PRESENT),
             ("shadow", SHADOW),
             ("exposure", EXPOSURE),
+            ("atmosphere", ATMOSPHERE),
         ] {
             let module = naga::front::wgsl::parse_str(src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));

@@ -5,8 +5,9 @@
 //! ground takes the clouds' shadows from it. It is made again only when the key light moves,
 //! the map changes or the look does, never for the camera alone.
 //!
-//! It also owns the scene's bind group (group 3: the volume, its sampler and parameters) that
-//! the march, present and exposure stages share (shaders/scene.wgsl).
+//! It also owns the scene's bind group (group 3: the volume, its sampler and parameters, and the
+//! atmosphere's sky-view table) that the march, present and exposure stages share
+//! (shaders/scene.wgsl).
 
 use super::contract::{self, Binding, Resource};
 use super::frame::FrameUniforms;
@@ -59,6 +60,12 @@ pub const SCENE_BINDINGS: &[Binding] = &[
         resource: Resource::Sampler,
     },
     contract::uniform::<ShadowParams>(SCENE_GROUP, 2),
+    // The atmosphere's sky-view table (render::atmosphere).
+    Binding {
+        group: SCENE_GROUP,
+        binding: 3,
+        resource: Resource::Texture2d { filterable: true },
+    },
 ];
 
 /// shadow.wgsl's own bindings (groups 0 and 1 are the march's).
@@ -164,6 +171,7 @@ pub struct ShadowPass {
     scene_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     params: wgpu::Buffer,
+    sky_view: wgpu::TextureView,
     size: (u32, u32, u32),
     volume: wgpu::Texture,
     own_bind: wgpu::BindGroup,
@@ -179,6 +187,7 @@ impl ShadowPass {
         march: &MarchPass,
         scene_layout: wgpu::BindGroupLayout,
         region: &Region,
+        sky_view: wgpu::TextureView,
     ) -> ShadowPass {
         let dev = &gpu.device;
         let own_layout = contract::layout(
@@ -220,14 +229,20 @@ impl ShadowPass {
             ..Default::default()
         });
         let size = volume_size(region);
-        let (volume, own_bind, scene_bind) =
-            Self::make_volume(gpu, size, &own_layout, &scene_layout, &sampler, &params);
+        let (volume, own_bind, scene_bind) = Self::make_volume(
+            gpu,
+            size,
+            &own_layout,
+            &scene_layout,
+            (&sampler, &params, &sky_view),
+        );
         ShadowPass {
             pipeline,
             own_layout,
             scene_layout,
             sampler,
             params,
+            sky_view,
             size,
             volume,
             own_bind,
@@ -242,8 +257,7 @@ impl ShadowPass {
         (w, h, d): (u32, u32, u32),
         own_layout: &wgpu::BindGroupLayout,
         scene_layout: &wgpu::BindGroupLayout,
-        sampler: &wgpu::Sampler,
-        params: &wgpu::Buffer,
+        (sampler, params, sky_view): (&wgpu::Sampler, &wgpu::Buffer, &wgpu::TextureView),
     ) -> (wgpu::Texture, wgpu::BindGroup, wgpu::BindGroup) {
         let dev = &gpu.device;
         let volume = dev.create_texture(&wgpu::TextureDescriptor {
@@ -279,6 +293,7 @@ impl ShadowPass {
                 R::TextureView(&view),
                 R::Sampler(sampler),
                 R::Buffer(params.as_entire_buffer_binding()),
+                R::TextureView(sky_view),
             ],
         );
         (volume, own, scene)
@@ -293,8 +308,7 @@ impl ShadowPass {
                 size,
                 &self.own_layout,
                 &self.scene_layout,
-                &self.sampler,
-                &self.params,
+                (&self.sampler, &self.params, &self.sky_view),
             );
             self.size = size;
         }

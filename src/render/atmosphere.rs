@@ -1,0 +1,208 @@
+//! Atmosphere stage: dispatches shaders/atmosphere.wgsl, the precomputed sky (Hillaire 2020;
+//! DESIGN §8). The transmittance and multiple-scattering tables are made once per device; the
+//! sky-view table around the camera when the Sun's elevation there or the camera's altitude
+//! moves. The present and march stages read the sky-view table (scene.wgsl) instead of
+//! evaluating a sky per pixel.
+
+use super::contract::{self, Binding, Resource};
+use super::frame::FrameUniforms;
+use super::gpu::Gpu;
+use super::march::bind;
+use super::shader;
+
+pub const LUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const TRANSMITTANCE_SIZE: (u32, u32) = (256, 64);
+pub const MULTISCATTER_SIZE: (u32, u32) = (32, 32);
+pub const SKY_VIEW_SIZE: (u32, u32) = (192, 108);
+/// The Sun's elevation may move this far (degrees) before the sky-view table is made again.
+pub const REBUILD_SUN_DEG: f64 = 0.1;
+/// The camera may climb or sink this far (m, or 2 % of its altitude) before it is made again.
+pub const REBUILD_ALT_M: f32 = 100.0;
+
+/// Every binding of atmosphere.wgsl.
+pub const BINDINGS: &[Binding] = &[
+    contract::uniform::<FrameUniforms>(0, 0),
+    Binding {
+        group: 1,
+        binding: 0,
+        resource: Resource::StorageTexture(LUT_FORMAT, 2),
+    },
+    Binding {
+        group: 2,
+        binding: 0,
+        resource: Resource::Texture2d { filterable: true },
+    },
+    Binding {
+        group: 2,
+        binding: 1,
+        resource: Resource::Texture2d { filterable: true },
+    },
+    Binding {
+        group: 2,
+        binding: 2,
+        resource: Resource::Sampler,
+    },
+];
+
+pub struct AtmospherePass {
+    transmittance: wgpu::ComputePipeline,
+    multiscatter: wgpu::ComputePipeline,
+    sky_view: wgpu::ComputePipeline,
+    device_bind: wgpu::BindGroup,
+    out_binds: [wgpu::BindGroup; 3],
+    /// The tables the multiple-scattering pass reads (the transmittance and a stand-in for
+    /// itself), and those the sky-view pass reads.
+    read_for_ms: wgpu::BindGroup,
+    read_for_sky: wgpu::BindGroup,
+    sky: wgpu::Texture,
+    tables_made: bool,
+    last: Option<(f32, f32)>,
+    /// Sky-view tables made so far.
+    pub builds: u32,
+}
+
+fn table(dev: &wgpu::Device, label: &str, (w, h): (u32, u32)) -> wgpu::Texture {
+    dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: LUT_FORMAT,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    })
+}
+
+impl AtmospherePass {
+    pub fn new(gpu: &Gpu, uniforms: &wgpu::Buffer) -> AtmospherePass {
+        let dev = &gpu.device;
+        let stage = wgpu::ShaderStages::COMPUTE;
+        let layouts = [0, 1, 2].map(|g| contract::layout(dev, "atmosphere", BINDINGS, g, stage));
+        let module = shader::module(dev, "atmosphere", shader::ATMOSPHERE);
+        let pipeline = |entry: &str, groups: usize| {
+            let all = [Some(&layouts[0]), Some(&layouts[1]), Some(&layouts[2])];
+            let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(entry),
+                bind_group_layouts: &all[..groups],
+                immediate_size: 0,
+            });
+            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let transmittance = pipeline("transmittance", 2);
+        let multiscatter = pipeline("multiscatter", 3);
+        let sky_view = pipeline("sky_view", 3);
+        let trans = table(dev, "transmittance table", TRANSMITTANCE_SIZE);
+        let ms = table(dev, "multiple-scattering table", MULTISCATTER_SIZE);
+        let sky = table(dev, "sky-view table", SKY_VIEW_SIZE);
+        let stand_in = table(dev, "multiple-scattering stand-in", (1, 1));
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("atmosphere tables"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        use wgpu::BindingResource as R;
+        let device_bind = bind(
+            dev,
+            "atmosphere: device",
+            &layouts[0],
+            [R::Buffer(uniforms.as_entire_buffer_binding())],
+        );
+        let out = |t: &wgpu::Texture| {
+            bind(
+                dev,
+                "atmosphere: out",
+                &layouts[1],
+                [R::TextureView(&view(t))],
+            )
+        };
+        let out_binds = [out(&trans), out(&ms), out(&sky)];
+        let read = |second: &wgpu::Texture| {
+            bind(
+                dev,
+                "atmosphere: read",
+                &layouts[2],
+                [
+                    R::TextureView(&view(&trans)),
+                    R::TextureView(&view(second)),
+                    R::Sampler(&sampler),
+                ],
+            )
+        };
+        let read_for_ms = read(&stand_in);
+        let read_for_sky = read(&ms);
+        AtmospherePass {
+            transmittance,
+            multiscatter,
+            sky_view,
+            device_bind,
+            out_binds,
+            read_for_ms,
+            read_for_sky,
+            sky,
+            tables_made: false,
+            last: None,
+            builds: 0,
+        }
+    }
+
+    /// The sky-view table, for the scene's group.
+    pub fn sky_view(&self) -> &wgpu::Texture {
+        &self.sky
+    }
+
+    /// Make what this frame needs (its uniforms already written before `enc` runs): the fixed
+    /// tables on the first frame, the sky-view table when the Sun's elevation at the camera or
+    /// the camera's altitude moved. Returns whether the sky-view table was made.
+    pub fn update(&mut self, enc: &mut wgpu::CommandEncoder, u: &FrameUniforms) -> bool {
+        let up = glam::Vec3::from(u.cam_up);
+        let sun_el = up.dot(glam::Vec3::from(u.sun_dir)).clamp(-1.0, 1.0).asin();
+        let now = (sun_el, u.cam_alt_m);
+        let stale = self.last.is_none_or(|(el, alt)| {
+            (el - sun_el).abs() > REBUILD_SUN_DEG.to_radians() as f32
+                || (alt - u.cam_alt_m).abs() > REBUILD_ALT_M.max(0.02 * alt.abs())
+        });
+        if self.tables_made && !stale {
+            return false;
+        }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("atmosphere"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.device_bind, &[]);
+        let groups = |(w, h): (u32, u32)| (w.div_ceil(8), h.div_ceil(8));
+        if !self.tables_made {
+            pass.set_pipeline(&self.transmittance);
+            pass.set_bind_group(1, &self.out_binds[0], &[]);
+            let (x, y) = groups(TRANSMITTANCE_SIZE);
+            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(&self.multiscatter);
+            pass.set_bind_group(1, &self.out_binds[1], &[]);
+            pass.set_bind_group(2, &self.read_for_ms, &[]);
+            let (x, y) = groups(MULTISCATTER_SIZE);
+            pass.dispatch_workgroups(x, y, 1);
+            self.tables_made = true;
+        }
+        pass.set_pipeline(&self.sky_view);
+        pass.set_bind_group(1, &self.out_binds[2], &[]);
+        pass.set_bind_group(2, &self.read_for_sky, &[]);
+        let (x, y) = groups(SKY_VIEW_SIZE);
+        pass.dispatch_workgroups(x, y, 1);
+        self.last = Some(now);
+        self.builds += 1;
+        true
+    }
+}
