@@ -6,6 +6,7 @@
 //! uploads the map, `frame` forms the uniforms, `camera` holds the geometry, `preset` the
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
+pub mod blend;
 pub mod camera;
 pub mod contract;
 pub mod frame;
@@ -85,6 +86,9 @@ pub struct Settings {
     /// Meteorological visibility (m) for the aerial haze (Koschmieder: β = 3.912 / V).
     pub visibility_m: f64,
     pub frame_index: u32,
+    /// How far each layer's noise has drifted with its wind since the series' reference time
+    /// (east, north m; low, middle, high): zero for a plain map (crate::timeline).
+    pub drift_m: [[f64; 2]; 3],
 }
 
 /// The look's defaults, defined once: [`Settings::new`], the command line and the window's
@@ -115,6 +119,7 @@ impl Settings {
             exposure_ev: defaults::EXPOSURE_EV,
             visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
+            drift_m: [[0.0; 2]; 3],
         }
     }
 
@@ -350,6 +355,33 @@ impl Renderer {
         self.meta = map.meta.clone();
     }
 
+    /// Hold two forecast steps of one series, `a` before `b`, and blend them at each frame's
+    /// time (render::blend); [`set_map`](Self::set_map) goes back to one map. Only these two
+    /// steps' textures are on the GPU.
+    pub fn set_pair(&mut self, a: &CloudMap, b: &CloudMap) -> Result<(), RenderError> {
+        let kept = self
+            .weather
+            .set_pair(&self.gpu, a, b)
+            .map_err(RenderError::BadSetting)?;
+        if !kept {
+            self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
+            self.made.map_textures += 1;
+        }
+        self.meta = a.meta.clone();
+        Ok(())
+    }
+
+    /// Bytes of the map textures resident on the GPU (one map, or the two blended steps).
+    pub fn map_gpu_bytes(&self) -> u64 {
+        self.weather.gpu_bytes()
+    }
+
+    /// Bring a held pair of steps to the frame's time (nothing without one).
+    fn blend_at(&mut self, settings: &Settings) {
+        let w = &mut self.weather;
+        w.blend.at(&self.gpu, settings.time, &mut w.structure);
+    }
+
     /// The largest output side: [`MAX_OUTPUT_SIDE`] or the adapter's limit, whichever is less.
     pub fn max_side(&self) -> u32 {
         MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d)
@@ -403,6 +435,7 @@ impl Renderer {
         }
         settings.validate()?;
         let sky = self.sky(view, settings)?;
+        self.blend_at(settings);
         let uniforms = frame::build(&frame::FrameInput {
             view: *view,
             width,
@@ -475,6 +508,7 @@ impl Renderer {
         }
         settings.validate()?;
         let sky = self.sky(&View::TopDown, settings)?;
+        self.blend_at(settings);
         let uniforms = frame::build(&frame::FrameInput {
             view: View::TopDown,
             width,
