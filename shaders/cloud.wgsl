@@ -15,6 +15,10 @@
 @group(1) @binding(3) var st_top: texture_2d<f32>;       // cloud top, m
 @group(1) @binding(4) var st_kind: texture_2d<f32>;      // genus code, nearest texel
 @group(1) @binding(5) var st_wind: texture_2d<f32>;      // (u, v) high in RG, middle in BA, m/s
+// Two steps blended (render::blend): the later step's coverage, and per layer (three blocks
+// side by side on the structure lattice) both steps' winds (u0, v0, u1, v1), m/s.
+@group(1) @binding(6) var weather_next: texture_2d<f32>;
+@group(1) @binding(7) var blend_wind: texture_2d<f32>;
 
 // Genus codes (stratus_ingest::weather::CloudType) and the profile table's rows.
 const T_CIRRUS: f32 = 1.0;
@@ -54,16 +58,54 @@ struct Sample {
     inside: bool,    // inside the region
 };
 
+// Coverage between two steps (DESIGN §9, semi-Lagrangian): per layer the wind at this pixel,
+// (1 − w)·wind₀ + w·wind₁, displaces the lookups — the earlier step upwind by w·Δt·wind, the
+// later downwind by (1 − w)·Δt·wind — then (1 − w)·a + w·b. Off layers are not looked up.
+fn blended_cover(uv: vec2<f32>) -> vec3<f32> {
+    let su = uv * f.st_scale + f.st_offset;
+    // Keep the wind lookup inside its layer's block (no bleed from the neighbouring one).
+    let half_texel = 0.5 / f32(textureDimensions(blend_wind).x);
+    let bx = clamp(su.x, 3.0 * half_texel, 1.0 - 3.0 * half_texel);
+    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
+    // uv per (m/s · s): degrees per metre over the region's span.
+    let per_m = vec2<f32>(
+        57.29578 / (EARTH_R * max(cos(lat), 0.05) * f.region_lon_span),
+        -57.29578 / (EARTH_R * (f.region_north - f.region_south)),
+    );
+    var cm = vec3<f32>(0.0);
+    for (var j = 0; j < 3; j++) {
+        if (f.layer_scale[j] > 0.0) {
+            let wv = textureSampleLevel(blend_wind, clamp_lin, vec2<f32>((bx + f32(j)) / 3.0, su.y), 0.0);
+            let d = mix(wv.xy, wv.zw, f.blend_w) * per_m;
+            let a = textureSampleLevel(weather, clamp_lin, uv - d * f.blend_back_s, 0.0)[j];
+            let b = textureSampleLevel(weather_next, clamp_lin, uv + d * f.blend_ahead_s, 0.0)[j];
+            cm[j] = mix(a, b, f.blend_w);
+        }
+    }
+    return cm;
+}
+
 fn weather_at(uv: vec2<f32>) -> Sample {
     var s: Sample;
     s.inside = uv.x >= 0.0;
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
-        let w = textureSampleLevel(weather, clamp_lin, uv, 0.0);
+        var c: vec3<f32>;
+        if (has_flag(f, FLAG_BLEND)) {
+            c = blended_cover(uv);
+        } else {
+            c = textureSampleLevel(weather, clamp_lin, uv, 0.0).rgb;
+        }
         // Layers that are off are never looked up (density_uv picks a drawn layer).
-        s.cm = clamp(w.rgb * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0));
+        s.cm = clamp(c * f.coverage_mul, vec3<f32>(0.0), vec3<f32>(1.0));
     }
     return s;
+}
+
+// Layer k's noise position: np moved with the layer's wind since the series' reference time
+// (zero for a plain map), so clouds drift between steps instead of standing still.
+fn drifted(np: vec3<f32>, k: i32) -> vec3<f32> {
+    return np - select(select(f.drift_high, f.drift_mid, k == 1), f.drift_low, k == 0);
 }
 
 // True when the coarse map says nothing is within a cell of this point.
@@ -224,13 +266,14 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let ph = (h - base) / thick;
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
     let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
+    let nq = drifted(np, max(k, 0));
     if (code < 0.5) {
-        return layer_density(np, cm, ph, detail) * scale;
+        return layer_density(nq, cm, ph, detail) * scale;
     }
-    var p = np;
+    var p = nq;
     if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
         let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
-        p = streaked(uv, h, ph, select(w.zw, w.xy, k == 2), np);
+        p = streaked(uv, h, ph, select(w.zw, w.xy, k == 2), np) + (nq - np);
     }
     return genus_density(p, cm, ph, code, detail) * scale;
 }
@@ -289,5 +332,5 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     local_count[C_DENSITY] += 1u;
     let base = f.layer_base[k];
     let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
-    return layer_density(np, s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
+    return layer_density(drifted(np, k), s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
 }

@@ -60,6 +60,12 @@ struct Frame {
     tower_top_m: f32,
     st_scale: vec2<f32>,        // map uv → structure-texture uv: uv * st_scale + st_offset
     st_offset: vec2<f32>,
+    drift_low: vec3<f32>,       // per layer: the noise's drift with the wind (ECEF m, mod period)
+    blend_w: f32,               // two steps blended: fraction of the interval elapsed
+    drift_mid: vec3<f32>,
+    blend_back_s: f32,          // seconds the earlier step is carried (sampled upwind)
+    drift_high: vec3<f32>,
+    blend_ahead_s: f32,         // seconds to the later step (sampled downwind)
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and
@@ -98,6 +104,7 @@ const FLAG_STRIDE: u32 = 64u;   // longer steps in clear air, back up on meeting
 const FLAG_STRUCTURE: u32 = 128u; // per-pixel base, top and genus (columns, not bands)
 const FLAG_TOWERS: u32 = 256u;  // the map holds cumulonimbus towers
 const FLAG_STREAKS: u32 = 512u; // the map holds cirrus-like genera, streaked along the wind
+const FLAG_BLEND: u32 = 1024u;  // two forecast steps blended along the layer winds (render::blend)
 
 fn has_flag(f: Frame, bit: u32) -> bool {
     return (f.flags & bit) != 0u;

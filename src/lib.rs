@@ -11,3 +11,4 @@ pub mod render;
 pub mod scenes;
 pub mod score;
 pub mod sun;
+pub mod timeline;

@@ -276,12 +276,21 @@ fn render_and_commit(
     let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
     sweep_stale_staging(&a.out, staging.path());
     let mut r = Renderer::new(a.look.gpu()?, map);
+    // A series: the GPU holds the two steps around each frame's time and blends them.
+    let mut timeline = if stratus_ingest::series::is_series(&a.map) {
+        Some(stratus::timeline::Timeline::open(&a.map)?)
+    } else {
+        None
+    };
     let pb = progress_bar(n, "frames");
     for i in 0..n {
         let (cam, time) = source.at(i, a.fps);
         let mut s = settings.clone();
         if let Some(t) = time {
             s.time = t;
+        }
+        if let Some(tl) = &mut timeline {
+            s.drift_m = tl.prepare(&mut r, s.time)?;
         }
         s.frame_index = i as u32;
         let frame = r.render(&View::Perspective(cam), w, h, &s)?;

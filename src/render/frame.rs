@@ -93,6 +93,17 @@ crate::gpu_struct! {
         /// Map uv → structure-texture uv: `uv * st_scale + st_offset`.
         pub st_scale: [f32; 2],
         pub st_offset: [f32; 2],
+        /// Per layer, the noise's drift with the layer's wind since the series' reference
+        /// time (ECEF m, modulo the shape period); zero for a plain map.
+        pub drift_low: [f32; 3],
+        /// Blend of two steps (render::blend): fraction of the interval elapsed.
+        pub blend_w: f32,
+        pub drift_mid: [f32; 3],
+        /// Seconds the earlier step is carried (it is sampled this far upwind).
+        pub blend_back_s: f32,
+        pub drift_high: [f32; 3],
+        /// Seconds to the later step (it is sampled this far downwind).
+        pub blend_ahead_s: f32,
     }
 }
 
@@ -118,6 +129,8 @@ pub mod flags {
     pub const TOWERS: u32 = 256;
     /// The map holds cirrus-like genera: noise streaked along the wind.
     pub const STREAKS: u32 = 512;
+    /// Two forecast steps are blended, the coverage carried along the layer winds.
+    pub const BLEND: u32 = 1024;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -335,7 +348,29 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.out_size = [inp.width as f32, inp.height as f32];
     u.frame_index = s.frame_index as f32;
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;
+    if let Some(b) = inp.weather.blend.now {
+        u.flags |= flags::BLEND;
+        (u.blend_w, u.blend_back_s, u.blend_ahead_s) = (b.w, b.back_s, b.ahead_s);
+    }
+    [u.drift_low, u.drift_mid, u.drift_high] = drift(r, &s.drift_m);
     Ok(u)
+}
+
+/// Each layer's noise drift (east, north m) as an ECEF offset along the region centre's east
+/// and north, modulo the noise period (the noise tiles, so only the remainder moves it; the
+/// f32 offset stays exact however long the series). One rigid offset per layer keeps the
+/// noise from shearing where the wind varies.
+fn drift(r: &Region, d: &[[f64; 2]; 3]) -> [[f32; 3]; 3] {
+    let (lat, lon) = r.centre();
+    let (east, north, _) = super::camera::enu_basis(lat, lon);
+    d.map(|[e, n]| {
+        let v = east * e + north * n;
+        v3(DVec3::new(
+            v.x.rem_euclid(SHAPE_PERIOD_M),
+            v.y.rem_euclid(SHAPE_PERIOD_M),
+            v.z.rem_euclid(SHAPE_PERIOD_M),
+        ))
+    })
 }
 
 #[cfg(test)]

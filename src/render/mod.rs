@@ -3,12 +3,12 @@
 //!
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
 //! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
-//! `march` (compute ray march into a
-//! cloud texture), `exposure` (meters the frame), `present` (sky + composite + tone map). `weather`
-//! uploads the map, `frame` forms the uniforms, `camera` holds the geometry, `preset` the
+//! `march` (compute ray march into a cloud texture), `exposure` (meters the frame), `present`
+//! (sky + composite + tone map). `weather` uploads the map (`blend` a second forecast step), `frame` forms the uniforms, `camera` holds the geometry, `preset` the
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
 pub mod atmosphere;
+pub mod blend;
 pub mod camera;
 pub mod contract;
 pub mod exposure;
@@ -96,6 +96,9 @@ pub struct Settings {
     /// Meteorological visibility (m) for the aerial haze (Koschmieder: β = 3.912 / V).
     pub visibility_m: f64,
     pub frame_index: u32,
+    /// How far each layer's noise has drifted with its wind since the series' reference time
+    /// (east, north m; low, middle, high): zero for a plain map (crate::timeline).
+    pub drift_m: [[f64; 2]; 3],
 }
 
 /// The look's defaults, defined once: [`Settings::new`], the command line and the window's
@@ -128,6 +131,7 @@ impl Settings {
             exposure_rate: 1.0,
             visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
+            drift_m: [[0.0; 2]; 3],
         }
     }
 
@@ -396,6 +400,37 @@ impl Renderer {
         self.meta = map.meta.clone();
     }
 
+    /// Hold two forecast steps of one series, `a` before `b`, and blend them at each frame's
+    /// time (render::blend); [`set_map`](Self::set_map) goes back to one map. Only these two
+    /// steps' textures are on the GPU.
+    pub fn set_pair(&mut self, a: &CloudMap, b: &CloudMap) -> Result<(), RenderError> {
+        let kept = self
+            .weather
+            .set_pair(&self.gpu, a, b)
+            .map_err(RenderError::BadSetting)?;
+        if !kept {
+            self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
+            self.made.map_textures += 1;
+        }
+        if a.meta.region != self.meta.region {
+            self.shadow.set_region(&self.gpu, &a.meta.region);
+        }
+        self.map_generation += 1;
+        self.meta = a.meta.clone();
+        Ok(())
+    }
+
+    /// Bytes of the map textures resident on the GPU (one map, or the two blended steps).
+    pub fn map_gpu_bytes(&self) -> u64 {
+        self.weather.gpu_bytes()
+    }
+
+    /// Bring a held pair of steps to the frame's time (nothing without one).
+    fn blend_at(&mut self, settings: &Settings) {
+        let w = &mut self.weather;
+        w.blend.at(&self.gpu, settings.time, &mut w.structure);
+    }
+
     /// The largest output side: [`MAX_OUTPUT_SIDE`] or the adapter's limit, whichever is less.
     pub fn max_side(&self) -> u32 {
         MAX_OUTPUT_SIDE.min(self.gpu.device.limits().max_texture_dimension_2d)
@@ -450,6 +485,7 @@ impl Renderer {
         }
         settings.validate()?;
         let sky = self.sky(view, settings)?;
+        self.blend_at(settings);
         let uniforms = frame::build(&frame::FrameInput {
             view: *view,
             width,
@@ -545,6 +581,7 @@ impl Renderer {
         }
         settings.validate()?;
         let sky = self.sky(&View::TopDown, settings)?;
+        self.blend_at(settings);
         let uniforms = frame::build(&frame::FrameInput {
             view: View::TopDown,
             width,

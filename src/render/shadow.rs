@@ -112,15 +112,17 @@ pub fn volume_size(region: &Region) -> (u32, u32, u32) {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Inputs {
     key_dir: [f32; 3],
-    look: [f32; 24],
+    look: [f32; 25],
     flags: u32,
     map_generation: u64,
 }
 
 impl Inputs {
     fn of(u: &FrameUniforms, key_dir: [f32; 3], map_generation: u64) -> Inputs {
-        let mut look = [0.0; 24];
+        let mut look = [0.0; 25];
         let vals = [
+            // Between two forecast steps the blend moves the cloud: again every 2 % of the way.
+            (u.blend_w * 50.0).round() / 50.0,
             u.region_south,
             u.region_north,
             u.region_west,

@@ -41,6 +41,7 @@ pub struct StructureInfo {
 }
 
 /// The four textures' texels (f16) and what the frame needs, made on the CPU.
+#[derive(Clone)]
 pub struct Prepared {
     pub width: u32,
     pub height: u32,

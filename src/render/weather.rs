@@ -5,6 +5,7 @@
 use rayon::prelude::*;
 use stratus_ingest::cloudmap::CloudMap;
 
+use super::blend::Blend;
 use super::camera::EARTH_R;
 use super::gpu::Gpu;
 use super::structure::{self, StructureTextures};
@@ -34,6 +35,8 @@ pub struct WeatherMap {
     pub coarse_h: usize,
     /// Per-pixel base, top, type and wind (a 1×1 stand-in for maps without them).
     pub structure: StructureTextures,
+    /// The later step and both steps' winds when two steps are blended (render::blend).
+    pub blend: Blend,
 }
 
 /// Box-average `texels` (w×h, RGBA in 0..1) by an integer factor.
@@ -224,6 +227,7 @@ impl WeatherMap {
             coarse_w: p.cw,
             coarse_h: p.ch,
             structure: StructureTextures::new(gpu, &p.structure),
+            blend: Blend::none(gpu),
         };
         m.store(gpu, p);
         m
@@ -233,6 +237,8 @@ impl WeatherMap {
     /// new forecast over the same region), so nothing is made again, else into new textures.
     /// True when the textures were kept (a bind group over them stays valid).
     pub fn replace(&mut self, gpu: &Gpu, map: &CloudMap) -> bool {
+        self.blend.pair = None;
+        self.blend.now = None;
         let p = Prepared::new(gpu, map);
         let fits = (p.w as u32, p.h as u32) == (self.width, self.height)
             && (p.cw, p.ch) == (self.coarse_w, self.coarse_h)
@@ -245,6 +251,48 @@ impl WeatherMap {
         fits
     }
 
+    /// Upload two forecast steps to be blended (DESIGN §9): `a` into these textures (as
+    /// [`replace`](Self::replace)), `b` and both steps' winds beside it; the coarse map is the
+    /// max of both, dilated by the farthest either is carried in the interval, so empty-space
+    /// skipping never passes over displaced cover. True when every texture was kept.
+    pub fn set_pair(&mut self, gpu: &Gpu, a: &CloudMap, b: &CloudMap) -> Result<bool, String> {
+        stratus_ingest::series::advect::check_compatible(a, b)?;
+        let (pa, pb) = (Prepared::new(gpu, a), Prepared::new(gpu, b));
+        let structures = (pa.structure.info.present
+            && pb.structure.info.present
+            && (pa.structure.width, pa.structure.height)
+                == (pb.structure.width, pb.structure.height))
+            .then(|| [pa.structure.clone(), pb.structure.clone()]);
+        let reach_cells = carried_cells(a, b, pa.w, pa.h);
+        let cells: Vec<f32> = pa
+            .cells
+            .iter()
+            .zip(&pb.cells)
+            .map(|(x, y)| x.max(*y))
+            .collect();
+        let cells = dilate(&cells, pa.cw, pa.ch, reach_cells);
+        let mut kept = self.replace(gpu, a);
+        write(gpu, &self.coarse, bytemuck::cast_slice(&cells), 4);
+        self.coarse_cells = cells;
+        kept &= self
+            .blend
+            .store(gpu, (&pb.halfs, pb.w, pb.h), (a, b), structures)?;
+        Ok(kept)
+    }
+
+    /// Bytes of every texture this map holds on the GPU (both steps when blending).
+    pub fn gpu_bytes(&self) -> u64 {
+        let t = |t: &wgpu::Texture| {
+            let bpp = t.format().block_copy_size(None).unwrap_or(0) as u64;
+            t.width() as u64 * t.height() as u64 * bpp
+        };
+        t(&self.texture)
+            + t(&self.coarse)
+            + self.structure.textures.iter().map(t).sum::<u64>()
+            + t(&self.blend.next)
+            + t(&self.blend.wind)
+    }
+
     fn store(&mut self, gpu: &Gpu, p: Prepared) {
         write(gpu, &self.texture, bytemuck::cast_slice(&p.halfs), 8);
         write(gpu, &self.coarse, bytemuck::cast_slice(&p.cells), 4);
@@ -253,6 +301,69 @@ impl WeatherMap {
         self.coarse_cells = p.cells;
         self.structure.store(gpu, &p.structure);
     }
+}
+
+/// Coarse cells the farthest displacement of the interval spans: the fastest layer wind of
+/// either step times the interval, in the map's pixels at its widest (poleward) pixel.
+fn carried_cells(a: &CloudMap, b: &CloudMap, w: usize, h: usize) -> usize {
+    let fastest = [a, b]
+        .iter()
+        .filter_map(|m| m.structure.as_ref())
+        .flat_map(|s| s.wind_u.iter().zip(&s.wind_v))
+        .flat_map(|(u, v)| {
+            (0..3).map(move |c| {
+                let (x, y) = (
+                    stratus_ingest::structure::sample_to_wind(u[c]),
+                    stratus_ingest::structure::sample_to_wind(v[c]),
+                );
+                (x * x + y * y).sqrt()
+            })
+        })
+        .fold(0.0f64, f64::max);
+    let (Some(t0), Some(t1)) = (a.meta.source.valid_time, b.meta.source.valid_time) else {
+        return 0;
+    };
+    let reach_m = fastest * (t1 - t0).num_seconds().unsigned_abs() as f64;
+    let r = &a.meta.region;
+    let deg_m = EARTH_R.to_radians();
+    let cos = r
+        .south
+        .abs()
+        .max(r.north.abs())
+        .min(89.9)
+        .to_radians()
+        .cos();
+    let px_m = (r.north - r.south) / h as f64 * deg_m;
+    let px_m = px_m.min(r.lon_span() / w as f64 * deg_m * cos);
+    (reach_m / px_m / COARSE_CELL as f64).ceil() as usize
+}
+
+/// Max over a square of `n` cells around each cell.
+fn dilate(cells: &[f32], cw: usize, ch: usize, n: usize) -> Vec<f32> {
+    if n == 0 {
+        return cells.to_vec();
+    }
+    // Separable: rows, then columns.
+    let pass = |src: &[f32], horizontal: bool| -> Vec<f32> {
+        (0..cw * ch)
+            .into_par_iter()
+            .map(|idx| {
+                let (i, j) = (idx % cw, idx / cw);
+                let (at, len) = if horizontal { (i, cw) } else { (j, ch) };
+                let (lo, hi) = (at.saturating_sub(n), (at + n).min(len - 1));
+                (lo..=hi)
+                    .map(|k| {
+                        if horizontal {
+                            src[j * cw + k]
+                        } else {
+                            src[k * cw + i]
+                        }
+                    })
+                    .fold(0.0f32, f32::max)
+            })
+            .collect()
+    };
+    pass(&pass(cells, true), false)
 }
 
 #[cfg(test)]
@@ -271,6 +382,19 @@ mod tests {
             for i in 0..cw {
                 let want = if (1..=3).contains(&i) { 0.4 } else { 0.0 };
                 assert_eq!(c[j * cw + i], want, "cell {i},{j}");
+            }
+        }
+    }
+
+    #[test]
+    fn dilation_spreads_by_n_cells() {
+        let mut c = vec![0.0f32; 9 * 5];
+        c[2 * 9 + 4] = 0.7;
+        let d = dilate(&c, 9, 5, 2);
+        for j in 0..5 {
+            for i in 0..9 {
+                let want = if (2..=6).contains(&i) { 0.7 } else { 0.0 };
+                assert_eq!(d[j * 9 + i], want, "cell {i},{j}");
             }
         }
     }

@@ -1,0 +1,181 @@
+//! A forecast series flown through time (DESIGN §9): which two steps the renderer holds for the
+//! scene's moment, the step after them loaded ahead on a background thread so crossing into the
+//! next interval costs an upload and no decode, and how far each layer's noise has drifted with
+//! its wind since the series' first step.
+//!
+//! The drift is the time integral of each layer's region-mean wind, interpolated linearly
+//! between steps (held before the first and after the last), so it is continuous through step
+//! boundaries: the noise never jumps. One rigid offset per layer (not per pixel) keeps the
+//! noise from shearing apart over hours where the wind varies; the coverage itself moves with
+//! the per-pixel winds (render::blend).
+
+use std::path::Path;
+use std::thread::JoinHandle;
+
+use chrono::{DateTime, Utc};
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::error::Result;
+use stratus_ingest::series::Series;
+use stratus_ingest::structure::sample_to_wind;
+
+use crate::render::{RenderError, Renderer};
+
+/// Per layer (low, middle, high): (east, north), m/s or m.
+pub type PerLayer = [[f64; 2]; 3];
+
+#[derive(Debug, thiserror::Error)]
+pub enum TimelineError {
+    #[error(transparent)]
+    Map(#[from] stratus_ingest::error::IngestError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("loading a step ahead: the loader thread stopped")]
+    Loader,
+}
+
+pub struct Timeline {
+    pub series: Series,
+    /// Each step's valid time and region-mean layer winds.
+    means: Vec<(DateTime<Utc>, PerLayer)>,
+    /// The interval held on the GPU (steps k, k + 1) and the later step's map, which becomes
+    /// the earlier one of the next interval.
+    held: Option<(usize, CloudMap)>,
+    /// The step after the held pair, loading.
+    ahead: Option<(usize, JoinHandle<Result<CloudMap>>)>,
+    /// Intervals uploaded so far (a test counts them).
+    pub uploads: u32,
+}
+
+/// Region-mean wind of each layer of `map` (zero without winds).
+pub fn mean_winds(map: &CloudMap) -> PerLayer {
+    let mut out = [[0.0; 2]; 3];
+    let Some(s) = map.structure.as_ref().filter(|s| s.is_whole()) else {
+        return out;
+    };
+    let n = s.wind_u.len().max(1) as f64;
+    for (c, o) in out.iter_mut().enumerate() {
+        let sum = |w: &[[u16; 3]]| w.iter().map(|x| sample_to_wind(x[c])).sum::<f64>() / n;
+        *o = [sum(&s.wind_u), sum(&s.wind_v)];
+    }
+    out
+}
+
+/// Step `k` of `series`, its valid time and step the series' (a map may serve several steps
+/// of a synthetic series).
+fn load_step(series: &Series, k: usize) -> Result<CloudMap> {
+    let mut m = series.step_map(k)?;
+    let s = &series.steps()[k];
+    m.meta.source.valid_time = Some(s.valid_time);
+    m.meta.source.forecast_step_h = s.forecast_hour;
+    Ok(m)
+}
+
+impl Timeline {
+    /// Open the series sidecar `path`; each step's map is read once for its mean winds.
+    pub fn open(path: &Path) -> Result<Timeline> {
+        let series = Series::load(path)?;
+        let mut means = Vec::with_capacity(series.steps().len());
+        for (k, s) in series.steps().iter().enumerate() {
+            means.push((s.valid_time, mean_winds(&load_step(&series, k)?)));
+        }
+        Ok(Timeline {
+            series,
+            means,
+            held: None,
+            ahead: None,
+            uploads: 0,
+        })
+    }
+
+    /// First and last valid time.
+    pub fn span(&self) -> (DateTime<Utc>, DateTime<Utc>) {
+        let s = self.series.steps();
+        (s[0].valid_time, s[s.len() - 1].valid_time)
+    }
+
+    /// The interval (k, k + 1) holding `time`, clamped to the series' ends; `None` for a series
+    /// of one step.
+    pub fn interval(&self, time: DateTime<Utc>) -> Option<usize> {
+        let s = self.series.steps();
+        if s.len() < 2 {
+            return None;
+        }
+        let after = s
+            .iter()
+            .position(|x| x.valid_time > time)
+            .unwrap_or(s.len());
+        Some(after.saturating_sub(1).min(s.len() - 2))
+    }
+
+    /// How far each layer's noise has drifted with its mean wind from the first step to `time`
+    /// (east, north m): the integral of the piecewise-linear wind.
+    pub fn drift_m(&self, time: DateTime<Utc>) -> PerLayer {
+        let secs = |a: DateTime<Utc>, b: DateTime<Utc>| (b - a).num_milliseconds() as f64 / 1e3;
+        let m = &self.means;
+        let mut out = [[0.0; 2]; 3];
+        let mut add = |wa: &PerLayer, wb: &PerLayer, dt: f64, frac: f64| {
+            // ∫₀^frac·dt of the wind going linearly from wa to wb over dt.
+            for (c, o) in out.iter_mut().enumerate() {
+                for x in 0..2 {
+                    let (a, b) = (wa[c][x], wb[c][x]);
+                    o[x] += dt * (a * frac + 0.5 * (b - a) * frac * frac);
+                }
+            }
+        };
+        let (t_first, w_first) = m[0];
+        if time <= t_first {
+            add(&w_first, &w_first, secs(t_first, time), 1.0);
+            return out;
+        }
+        for pair in m.windows(2) {
+            let ((t0, w0), (t1, w1)) = (pair[0], pair[1]);
+            let dt = secs(t0, t1);
+            if time >= t1 {
+                add(&w0, &w1, dt, 1.0);
+            } else {
+                add(&w0, &w1, dt, secs(t0, time) / dt);
+                return out;
+            }
+        }
+        let (t_last, w_last) = m[m.len() - 1];
+        add(&w_last, &w_last, secs(t_last, time), 1.0);
+        out
+    }
+
+    /// Make `r` hold the two steps around `time` (uploading only when the interval changes,
+    /// from the map loaded ahead where it can) and return the layers' drift at `time`.
+    pub fn prepare(
+        &mut self,
+        r: &mut Renderer,
+        time: DateTime<Utc>,
+    ) -> std::result::Result<PerLayer, TimelineError> {
+        let Some(k) = self.interval(time) else {
+            if self.held.is_none() {
+                let m = load_step(&self.series, 0)?;
+                r.set_map(&m);
+                self.held = Some((0, m));
+            }
+            return Ok(self.drift_m(time));
+        };
+        if self.held.as_ref().map(|h| h.0) != Some(k) {
+            let a = match self.held.take() {
+                Some((j, later)) if j + 1 == k => later,
+                _ => load_step(&self.series, k)?,
+            };
+            let b = match self.ahead.take() {
+                Some((j, handle)) if j == k + 1 => {
+                    handle.join().map_err(|_| TimelineError::Loader)??
+                }
+                _ => load_step(&self.series, k + 1)?,
+            };
+            r.set_pair(&a, &b)?;
+            self.uploads += 1;
+            self.held = Some((k, b));
+            if k + 2 < self.series.steps().len() {
+                let series = self.series.clone();
+                self.ahead = Some((k + 2, std::thread::spawn(move || load_step(&series, k + 2))));
+            }
+        }
+        Ok(self.drift_m(time))
+    }
+}

@@ -1,0 +1,238 @@
+//! Weather that moves, on the GPU (DESIGN §9), with the real +0/+6 h GFS steps over the North
+//! Atlantic and Europe: the renderer's blend of two steps against the CPU reference
+//! (`series::blend`), no popping as time advances a minute at a time across a step boundary,
+//! and a 24-step series flown with two steps' textures on the GPU.
+//!
+//! The 3- and 24-step series are synthetic (labelled so in their sidecars' step list): the two
+//! real step maps repeated with new valid times every 6 h, so there are step boundaries to
+//! cross; every map in them is a real GFS step.
+//!
+//! `cargo test --release --test time -- --nocapture` prints the figures docs/time.md quotes.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use chrono::{DateTime, Duration, Utc};
+use common::{shared, stratus};
+use stratus::render::{Gpu, Preset, Renderer, Settings, View};
+use stratus::score::{compare, mask};
+use stratus::timeline::Timeline;
+use stratus_ingest::series::{blend, Series};
+
+/// Ingest the two real steps into `dir/na.json` (None where ../shared is absent).
+fn real_series(dir: &Path, size: &str) -> Option<PathBuf> {
+    let f0 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    if !(f0.is_file() && f6.is_file()) {
+        eprintln!("skipped: ../shared/data/gfs-series not found");
+        return None;
+    }
+    let out = dir.join("na.png");
+    let o = stratus(&[
+        "ingest",
+        f0.to_str().unwrap(),
+        f6.to_str().unwrap(),
+        "--region",
+        "30,70,-60,40",
+        "--size",
+        size,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    Some(dir.join("na.json"))
+}
+
+/// A synthetic series of `n` steps 6 h apart beside the real one: +0 h, +6 h, +0 h, … maps.
+fn synthetic_series(real: &Path, n: usize) -> PathBuf {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(real).unwrap()).unwrap();
+    let steps = v["steps"].as_array().unwrap().clone();
+    let t0 = DateTime::parse_from_rfc3339(v["reference_time"].as_str().unwrap())
+        .unwrap()
+        .with_timezone(&Utc);
+    let new: Vec<serde_json::Value> = (0..n)
+        .map(|k| {
+            let mut s = steps[k % 2].clone();
+            s["forecast_hour"] = (6.0 * k as f64).into();
+            s["valid_time"] = (t0 + Duration::hours(6 * k as i64))
+                .format("%Y-%m-%dT%H:%M:%SZ")
+                .to_string()
+                .into();
+            s
+        })
+        .collect();
+    v["steps"] = new.into();
+    let path = real.with_file_name(format!("synthetic-{n}-steps.json"));
+    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    path
+}
+
+fn settings(time: DateTime<Utc>) -> Settings {
+    Settings::new(Preset::Balanced, time)
+}
+
+fn dsc(a: &[f32], b: &[f32]) -> f64 {
+    compare(&mask(a, 0.5), &mask(b, 0.5)).dice
+}
+
+#[test]
+fn the_gpu_blend_matches_the_cpu_blend_half_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(path) = real_series(dir.path(), "512x256") else {
+        return;
+    };
+    let series = Series::load(&path).unwrap();
+    let (a, b) = (series.step_map(0).unwrap(), series.step_map(1).unwrap());
+    let cpu = blend(&a, &b, 0.5, 6.0 * 3600.0).unwrap();
+    let t = a.meta.source.valid_time.unwrap() + Duration::hours(3);
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &a);
+    let (w, h) = (512, 256);
+    let alpha = |r: &mut Renderer, on: [bool; 3]| {
+        let mut s = settings(t);
+        s.layers_on = on;
+        r.render(&View::TopDown, w, h, &s).unwrap().alpha()
+    };
+    for (name, on) in [
+        ("all", [true; 3]),
+        ("low", [true, false, false]),
+        ("middle", [false, true, false]),
+        ("high", [false, false, true]),
+    ] {
+        r.set_pair(&a, &b).unwrap();
+        let gpu = alpha(&mut r, on);
+        r.set_map(&cpu);
+        let reference = alpha(&mut r, on);
+        // The control: the earlier step unchanged is further from the reference.
+        r.set_map(&a);
+        let held = alpha(&mut r, on);
+        let (d, d_held) = (dsc(&gpu, &reference), dsc(&held, &reference));
+        println!(
+            "{name}: GPU blend vs CPU blend DSC {d:.4}; earlier step held vs CPU blend {d_held:.4}"
+        );
+        assert!(d >= 0.95, "{name}: DSC {d:.4} < 0.95");
+        assert!(
+            d > d_held,
+            "{name}: the blend ({d:.4}) is no closer than holding ({d_held:.4})"
+        );
+    }
+}
+
+/// Per-frame change of opacity: (max over pixels, mean).
+fn change(a: &[f32], b: &[f32]) -> (f32, f32) {
+    let d: Vec<f32> = a.iter().zip(b).map(|(x, y)| (x - y).abs()).collect();
+    let max = d.iter().copied().fold(0.0, f32::max);
+    (max, d.iter().sum::<f32>() / d.len() as f32)
+}
+
+/// Bound on the per-minute change of top-down cloud opacity, the mean over pixels of |Δα|
+/// (measured in docs/time.md). The max over pixels reaches 1 every minute, boundary or not:
+/// the noise is carved by a sharp threshold, so a pixel whose noise sits at it flips on the
+/// smallest change of coverage or noise position; the bound is on how many do.
+const POP_BOUND_MEAN: f32 = 0.02;
+
+#[test]
+fn time_advancing_by_the_minute_does_not_pop_at_a_step_boundary() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(real) = real_series(dir.path(), "512x256") else {
+        return;
+    };
+    let path = synthetic_series(&real, 3);
+    let mut tl = Timeline::open(&path).unwrap();
+    let (t0, _) = tl.span();
+    let first = tl.series.step_map(0).unwrap();
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &first);
+    // The whole region from above (the score's view): fixed, every layer in sight.
+    let mut frames = |from_min: i64, n: i64, drift: bool| -> Vec<Vec<f32>> {
+        (0..n)
+            .map(|i| {
+                let t = t0 + Duration::minutes(from_min + i);
+                let mut s = settings(t);
+                let d = tl.prepare(&mut r, t).unwrap();
+                if drift {
+                    s.drift_m = d;
+                }
+                r.render(&View::TopDown, 256, 128, &s).unwrap().alpha()
+            })
+            .collect()
+    };
+    let report = |name: &str, f: &[Vec<f32>]| -> Vec<(f32, f32)> {
+        let c: Vec<(f32, f32)> = f.windows(2).map(|p| change(&p[0], &p[1])).collect();
+        let max = c.iter().map(|x| x.0).fold(0.0, f32::max);
+        let mean = c.iter().map(|x| x.1).fold(0.0, f32::max);
+        println!("{name}: per minute, largest max |Δα| {max:.4}, largest mean |Δα| {mean:.5}; per frame (max, mean): {c:?}");
+        c
+    };
+    for drift in [false, true] {
+        let what = if drift {
+            "noise drifting"
+        } else {
+            "noise held"
+        };
+        // Ten minutes either side of the +6 h boundary, and of the interval's middle (where
+        // the genus switches to the later step's).
+        let b = report(&format!("{what}, across +6 h"), &frames(350, 21, drift));
+        let m = report(&format!("{what}, around +3 h"), &frames(170, 21, drift));
+        // Pairs 9 and 10 straddle +6 h exactly (frame 10 is +6 h 00 min).
+        let pick = |f: fn(&(f32, f32)) -> f32, at: bool| {
+            b.iter()
+                .enumerate()
+                .filter(|(i, _)| (9..=10).contains(i) == at)
+                .map(|(_, x)| f(x))
+                .chain(m.iter().filter(|_| !at).map(f))
+                .fold(0.0, f32::max)
+        };
+        for (name, f) in [
+            ("max", (|x: &(f32, f32)| x.0) as fn(&(f32, f32)) -> f32),
+            ("mean", |x| x.1),
+        ] {
+            let (at, within) = (pick(f, true), pick(f, false));
+            println!("{what}: step boundary {name} |Δα| {at:.4}; within the steps {within:.4}");
+            assert!(
+                at <= within,
+                "{what}: the step boundary jumps ({name} {at:.4}) more than time within the steps ({within:.4})"
+            );
+        }
+        for x in b.iter().chain(&m) {
+            assert!(
+                x.1 <= POP_BOUND_MEAN,
+                "{what}: mean |Δα| {} > {POP_BOUND_MEAN}",
+                x.1
+            );
+        }
+    }
+}
+
+#[test]
+fn a_24_step_series_flies_with_two_steps_on_the_gpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(real) = real_series(dir.path(), "1024x512") else {
+        return;
+    };
+    let path = synthetic_series(&real, 24);
+    let mut tl = Timeline::open(&path).unwrap();
+    let (t0, t_end) = tl.span();
+    let first = tl.series.step_map(0).unwrap();
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &first);
+    let one_map = r.map_gpu_bytes();
+    let mut most = 0u64;
+    // Every 2 h through 138 h: a frame in each interval.
+    let mut t = t0;
+    while t <= t_end {
+        let mut s = settings(t);
+        s.drift_m = tl.prepare(&mut r, t).unwrap();
+        r.render(&View::TopDown, 64, 32, &s).unwrap();
+        most = most.max(r.map_gpu_bytes());
+        t += Duration::hours(2);
+    }
+    println!(
+        "24 steps 1024x512: one map {one_map} B on the GPU; flying the series at most {most} B ({} uploads)",
+        tl.uploads
+    );
+    assert_eq!(tl.uploads, 23);
+    // Two steps' coverage, one coarse map, one structure set, two steps' winds: under 2.2×
+    // one map, whatever the series' length.
+    assert!(most <= one_map * 22 / 10, "{most} B > 2.2 × {one_map} B");
+    assert!(most > one_map, "the later step is on the GPU too");
+}
