@@ -84,6 +84,7 @@ fn the_ground_over_tibet_is_the_files_orography() {
     assert_eq!(p["ground_source"], "orography", "{p}");
     let orog = decoded((0, 3, 5), &[SurfaceType::Surface]);
     let want = spline_at(&orog, 33.0, 85.0);
+    println!("33°N 85°E: probe {ground:.1} m, the file's orography by spline {want:.1} m");
     assert!(
         (ground - want).abs() <= 50.0,
         "probe {ground} m, the file's orography by spline {want} m"
@@ -392,4 +393,30 @@ fn a_bad_ground_image_is_one_line_and_exit_2() {
     v["ground"]["grid"]["west"] = (-45.0).into();
     std::fs::write(&map, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     check(&["m.json", "ground.grid", "do not cover the region"]);
+}
+
+/// A loaded map saved elsewhere (`CloudMap::save`, what the window's re-derived maps use)
+/// keeps its ground texel for texel; one without orography saves without one.
+#[test]
+fn a_saved_map_keeps_its_ground() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = real_map(dir.path(), "m", ATLANTIC, "120x84");
+    let m = stratus_ingest::CloudMap::load(&map).unwrap();
+    let copy = dir.path().join("copy").join("c.png");
+    std::fs::create_dir(copy.parent().unwrap()).unwrap();
+    let json = m.save(&copy).unwrap();
+    let back = stratus_ingest::CloudMap::load(&json).unwrap();
+    assert_eq!(back.ground(), m.ground());
+    assert!(copy.with_file_name("c.ground-water.png").is_file());
+    let meta = back.meta.ground.as_ref().unwrap();
+    assert_eq!(
+        (meta.image.as_str(), meta.water_image.as_str()),
+        ("c.ground.png", "c.ground-water.png")
+    );
+    let mut bare = m.clone();
+    bare.ground = None;
+    let json = bare.save(&dir.path().join("bare.png")).unwrap();
+    let back = stratus_ingest::CloudMap::load(&json).unwrap();
+    assert!(back.ground().is_none() && back.meta.ground.is_none());
+    assert_eq!(back.ground_height_m(45.0, -30.0).0, 0.0);
 }
