@@ -151,6 +151,51 @@ impl GroundInputs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encode::fixtures::{small_field, valid_rh_fields, NI, NJ};
+    use crate::forecast::{Forecast, LevelSelect};
+
+    /// A file with RH, orography (sea in the west half, 800 m land in the east) and sea ice
+    /// bit-mapped out over land: land from the orography, ice 0 where missing, the default
+    /// albedo, no snow or cloud water, and the sidecar's list says which were read.
+    #[test]
+    fn missing_fields_and_points_take_the_defaults() {
+        let n = (NI * NJ) as usize;
+        let is_land = |k: usize| k % NI as usize >= 3;
+        let surface = |p, values: Vec<f64>| {
+            let mut f = small_field(p, 0.0, values);
+            f.level_type = Some(SurfaceType::Surface);
+            f.level_value = 0.0;
+            f.bits = 16;
+            f
+        };
+        let mut fields = valid_rh_fields();
+        let orog = (0..n)
+            .map(|k| if is_land(k) { 800.0 } else { 0.3 })
+            .collect();
+        fields.push(surface((0, 3, 5), orog));
+        let ice = (0..n)
+            .map(|k| if is_land(k) { f64::NAN } else { 0.5 })
+            .collect();
+        fields.push(surface((10, 2, 0), ice));
+        let bytes = crate::encode::encode_file(&fields);
+        let fc = Forecast::from_bytes(Path::new("t.grib2"), &bytes, LevelSelect::AllBelow(100.0))
+            .unwrap();
+        let g = fc.ground.expect("orography makes a ground");
+        assert_eq!(g.fields, [GroundField::Orography, GroundField::IceCover]);
+        for k in 0..n {
+            let land = is_land(k);
+            assert_eq!(g.land[k], f32::from(land), "point {k}");
+            assert_eq!(g.ice[k], if land { 0.0 } else { 0.5 }, "point {k}");
+            let want = default_albedo(f64::from(g.land[k]), f64::from(g.ice[k]), 0.0);
+            assert!((f64::from(g.albedo[k]) - want).abs() < 1e-6, "point {k}");
+            assert_eq!((g.snow_kg_m2[k], g.cwat_kg_m2[k]), (0.0, 0.0));
+        }
+        // RH alone: no ground.
+        let bytes = crate::encode::encode_file(&valid_rh_fields());
+        let fc = Forecast::from_bytes(Path::new("t.grib2"), &bytes, LevelSelect::AllBelow(100.0))
+            .unwrap();
+        assert!(fc.ground.is_none());
+    }
 
     #[test]
     fn default_albedo_orders_the_surfaces() {
