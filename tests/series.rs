@@ -68,6 +68,8 @@ fn the_real_steps_round_trip_as_a_series() {
     for step in ["na-f000", "na-f006"] {
         for suffix in [
             ".base.png",
+            ".ground-water.png",
+            ".ground.png",
             ".json",
             ".png",
             ".top.png",

@@ -9,6 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{IngestError, Result};
+use crate::ground::{image as ground_image, Ground, GroundMeta};
 use crate::meta::{CloudMapMeta, ExtraImage, ExtraRole, FORMAT};
 pub use crate::output::write_atomic;
 use crate::output::{write_set, ExtraWriter};
@@ -34,6 +35,9 @@ pub struct CloudMap {
     /// from a forecast; [`MapStructure::grid`]); `None` for maps without them, whose layers
     /// each have one band and a default type.
     pub structure: Option<MapStructure>,
+    /// Terrain and surface under the clouds, on their own lattice ([`crate::ground`]); `None`
+    /// for maps made from a file without orography (and older maps): sea level.
+    pub ground: Option<Ground>,
 }
 
 impl CloudMap {
@@ -96,6 +100,7 @@ impl CloudMap {
                 image_id: None,
                 extra_images: vec![],
                 structure_grid: None,
+                ground: None,
                 region,
                 width,
                 height,
@@ -115,6 +120,7 @@ impl CloudMap {
             },
             texels,
             structure: None,
+            ground: None,
         }
     }
 
@@ -134,14 +140,19 @@ impl CloudMap {
                     true => None,
                     false => Some(read_structure(sidecar, &meta)?),
                 };
-                Ok((texels, structure))
+                let ground = match &meta.ground {
+                    Some(g) => Some(read_ground(sidecar, &meta, g)?),
+                    None => None,
+                };
+                Ok((texels, structure, ground))
             });
             match read {
-                Ok((texels, structure)) => {
+                Ok((texels, structure, ground)) => {
                     return Ok(CloudMap {
                         meta,
                         texels,
                         structure,
+                        ground,
                     })
                 }
                 Err(PngFault::NotThisPair(_)) if attempt < PAIR_RETRIES => {
@@ -205,6 +216,12 @@ impl CloudMap {
                     }),
                 ));
             }
+        }
+        meta.ground = None;
+        if let Some(g) = &self.ground {
+            let (gm, writers) = ground_writers(png_path, g)?;
+            meta.ground = Some(gm);
+            extras.extend(writers);
         }
         write_set(
             png_path,
@@ -288,8 +305,14 @@ fn read_structure(
             .parent()
             .unwrap_or_else(|| Path::new("."))
             .join(&x.image);
-        let (ct, bd) = extra_format(role);
-        let buf = read_image(&path, meta, ct, bd, role.suffix())?;
+        let g = meta.structure_pixels();
+        let buf = read_image(
+            &path,
+            meta,
+            extra_format(role),
+            role.suffix(),
+            (g.width, g.height),
+        )?;
         raw.push((path, buf));
     }
     let grid = meta.structure_pixels();
@@ -334,6 +357,108 @@ fn read_structure(
         }));
     }
     Ok(s)
+}
+
+/// The ground's two images of a map written to `png_path`, their sidecar entry and writers.
+pub(crate) fn ground_writers<'a>(
+    png_path: &Path,
+    g: &Ground,
+) -> Result<(GroundMeta, Vec<(PathBuf, ExtraWriter<'a>)>)> {
+    let (sw, sh) = (g.grid.width, g.grid.height);
+    if !g.is_whole() {
+        return Err(IngestError::BadMap(format!(
+            "ground fields are not {sw}x{sh} texels each"
+        )));
+    }
+    let (surface, water) = ground_image::ground_paths(png_path);
+    // Centimetres: the f32 values' binary tails say nothing.
+    let cm = |v: f64| (v * 100.0).round() / 100.0;
+    let (min, max) = g.height_range();
+    let (min, max) = (cm(min), cm(max));
+    let meta = GroundMeta {
+        image: file_name(&surface)?,
+        water_image: file_name(&water)?,
+        grid: g.grid,
+        fields: g.fields.clone(),
+        height_min_m: min,
+        height_max_m: max,
+    };
+    let mut writers: Vec<(PathBuf, ExtraWriter<'a>)> = Vec::with_capacity(2);
+    for (path, ct, bytes) in [
+        (
+            surface,
+            ground_image::SURFACE_COLOR,
+            ground_image::surface_bytes(g),
+        ),
+        (
+            water,
+            ground_image::WATER_COLOR,
+            ground_image::water_bytes(g),
+        ),
+    ] {
+        writers.push((
+            path,
+            Box::new(move |w, id| {
+                let mut wr = png16_writer(w, ct, sw, sh, id)?;
+                wr.write_image_data(&bytes).map_err(|e| e.to_string())?;
+                wr.finish().map_err(|e| e.to_string())
+            }),
+        ));
+    }
+    Ok((meta, writers))
+}
+
+/// A 16-bit PNG writer of colour type `ct`, carrying the set's image id.
+fn png16_writer<W: Write>(
+    w: W,
+    ct: png::ColorType,
+    width: u32,
+    height: u32,
+    id: &str,
+) -> std::result::Result<png::Writer<W>, String> {
+    let mut enc = png::Encoder::new(w, width, height);
+    enc.set_color(ct);
+    enc.set_depth(png::BitDepth::Sixteen);
+    enc.set_compression(png::Compression::Fast);
+    enc.add_text_chunk(IMAGE_ID_KEYWORD.into(), id.into())
+        .map_err(|e| e.to_string())?;
+    enc.write_header().map_err(|e| e.to_string())
+}
+
+/// Read and check the ground images `g` names, each of `g.grid`'s size (checked before any
+/// pixel is decoded), 16-bit of its colour type, every terrain height present.
+fn read_ground(
+    sidecar: &Path,
+    meta: &CloudMapMeta,
+    g: &GroundMeta,
+) -> std::result::Result<Ground, PngFault> {
+    let dir = sidecar.parent().unwrap_or_else(|| Path::new("."));
+    let size = (g.grid.width, g.grid.height);
+    let surface_path = dir.join(&g.image);
+    let water_path = dir.join(&g.water_image);
+    let d16 = png::BitDepth::Sixteen;
+    let surface = read_image(
+        &surface_path,
+        meta,
+        (ground_image::SURFACE_COLOR, d16),
+        "ground",
+        size,
+    )?;
+    let water = read_image(
+        &water_path,
+        meta,
+        (ground_image::WATER_COLOR, d16),
+        "ground-water",
+        size,
+    )?;
+    ground_image::decode(g.grid, meta.region, g.fields.clone(), &surface, &water).map_err(
+        |(is_water, msg)| {
+            PngFault::Other(IngestError::BadCloudMap {
+                path: if is_water { water_path } else { surface_path },
+                msg,
+            })
+        },
+    )
 }
 
 /// The PNG text chunk under which a map's PNG carries its sidecar's `image_id`.
@@ -526,9 +651,9 @@ fn open_checked(
 fn read_image(
     path: &Path,
     meta: &CloudMapMeta,
-    ct: png::ColorType,
-    bd: png::BitDepth,
+    (ct, bd): (png::ColorType, png::BitDepth),
     what: &str,
+    size: (u32, u32),
 ) -> std::result::Result<Vec<u8>, PngFault> {
     let bad = |msg: String| {
         PngFault::Other(IngestError::BadCloudMap {
@@ -536,8 +661,7 @@ fn read_image(
             msg,
         })
     };
-    let g = meta.structure_pixels();
-    let mut reader = open_checked(path, meta, (g.width, g.height))?;
+    let mut reader = open_checked(path, meta, size)?;
     let info = reader.info();
     if (info.color_type, info.bit_depth) != (ct, bd) {
         return Err(bad(format!(

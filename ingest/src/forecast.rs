@@ -9,6 +9,7 @@ use chrono::{DateTime, Utc};
 
 use crate::error::{IngestError, Result};
 use crate::grib::{self, Field, MessageInfo};
+use crate::ground::GroundInputs;
 use crate::region::Region;
 use crate::weather::WeatherInputs;
 
@@ -44,6 +45,8 @@ pub struct Forecast {
     pub step_hours: Option<f64>,
     /// What the file holds besides RH for the map's structure, types and winds (issue 13).
     pub weather: WeatherInputs,
+    /// The ground's fields (issue 14) when the file has orography on the RH grid.
+    pub ground: Option<GroundInputs>,
 }
 
 fn key(p: f64) -> i64 {
@@ -190,8 +193,11 @@ impl Forecast {
             .filter(|p| levels.iter().any(|l| (l.pressure_hpa - p).abs() < 1e-6))
             .fold(DEFAULT_TOP_HPA, f64::min);
         let weather = WeatherInputs::load(path, bytes, &msgs, &first_grid, top);
+        let ground =
+            GroundInputs::load(path, bytes, &msgs, &first_grid, weather.surface_gh.as_ref());
         Ok(Forecast {
             weather,
+            ground,
             path: path.to_path_buf(),
             reference_time: wanted[0].reference_time,
             step_hours: wanted[0].step_hours,

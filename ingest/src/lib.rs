@@ -13,6 +13,9 @@
 //! what is not a regular file or is an input, commits a map's PNG and sidecar as a pair, and
 //! accounts for its temporary files.
 //!
+//! Under the clouds, [`ground`] holds the terrain and surface from the forecast's orography,
+//! land cover, ice, snow and albedo, and the column's cloud water, on the structure lattice.
+//!
 //! [`fetch`] downloads the messages a GFS run's steps need by byte range, from the run's `.idx`
 //! inventory, and validates each before writing a step's file.
 
@@ -23,6 +26,7 @@ pub mod fetch;
 pub mod forecast;
 pub mod geotiff;
 pub mod grib;
+pub mod ground;
 pub mod input;
 pub mod meta;
 pub mod output;

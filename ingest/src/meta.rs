@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+use crate::ground::{GroundField, GroundMeta};
 use crate::region::Region;
 use crate::weather::CloudType;
 use std::collections::BTreeMap;
@@ -201,23 +202,31 @@ impl StructureGrid {
     /// Check it against the map: each side 1..= the map's, finite positive spacings, and pixels
     /// whose extents cover the region (so a reader never samples outside them).
     fn validate(&self, region: &Region, map: (u32, u32)) -> Result<(), String> {
+        self.validate_as("structure_grid", region, map)
+    }
+
+    /// [`validate`](Self::validate) of the lattice the sidecar names `what`.
+    pub(crate) fn validate_as(
+        &self,
+        what: &str,
+        region: &Region,
+        map: (u32, u32),
+    ) -> Result<(), String> {
         for (name, v, side) in [("width", self.width, map.0), ("height", self.height, map.1)] {
             if v == 0 || v > side {
                 return Err(format!(
-                    "structure_grid.{name}: {v} px is outside 1..={side} (the map's {name})"
+                    "{what}.{name}: {v} px is outside 1..={side} (the map's {name})"
                 ));
             }
         }
         for (name, v) in [("north", self.north), ("west", self.west)] {
             if !v.is_finite() {
-                return Err(format!("structure_grid.{name}: {v} is not a number"));
+                return Err(format!("{what}.{name}: {v} is not a number"));
             }
         }
         for (name, v) in [("dlat", self.dlat), ("dlon", self.dlon)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "structure_grid.{name}: {v} is not a positive spacing"
-                ));
+                return Err(format!("{what}.{name}: {v} is not a positive spacing"));
             }
         }
         let slack = 1e-6;
@@ -231,7 +240,7 @@ impl StructureGrid {
             || east < region.west + region.lon_span() - slack
         {
             return Err(format!(
-                "structure_grid: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
+                "{what}: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
                 self.width, self.height, self.north, self.west, self.dlat, self.dlon
             ));
         }
@@ -318,6 +327,9 @@ pub struct CloudMapMeta {
     /// Where the structure images' pixels lie; absent: the map's own pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub structure_grid: Option<StructureGrid>,
+    /// The ground images and their lattice ([`crate::ground`]); absent: no ground (sea level).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground: Option<GroundMeta>,
     pub region: Region,
     pub width: u32,
     pub height: u32,
@@ -423,6 +435,33 @@ impl CloudMapMeta {
                 }
             }
         }
+        if let Some(g) = &self.ground {
+            g.grid
+                .validate_as("ground.grid", &self.region, (self.width, self.height))?;
+            for (name, v) in [
+                ("height_min_m", g.height_min_m),
+                ("height_max_m", g.height_max_m),
+            ] {
+                if !ALTITUDE_RANGE_M.contains(&v) {
+                    return Err(format!(
+                        "ground.{name}: {v} m is outside {}..={} m",
+                        ALTITUDE_RANGE_M.start(),
+                        ALTITUDE_RANGE_M.end()
+                    ));
+                }
+            }
+            if !g.fields.contains(&GroundField::Orography) {
+                return Err("ground.fields: no orography (a ground is made from it)".into());
+            }
+            if let Some((k, f)) = g
+                .fields
+                .iter()
+                .enumerate()
+                .find(|(k, f)| g.fields[..*k].contains(f))
+            {
+                return Err(format!("ground.fields[{k}]: {} listed twice", f.name()));
+            }
+        }
         let s = &self.source;
         for (name, v) in [
             ("forecast_step_h", s.forecast_step_h),
@@ -460,6 +499,27 @@ impl CloudMapMeta {
                 return Err(format!(
                     "format: {f:?} is not {FORMAT:?}, {FORMAT_V2:?} or {FORMAT_V1:?}"
                 ))
+            }
+        }
+        if let Some(g) = &self.ground {
+            if self.format != FORMAT {
+                return Err(format!(
+                    "ground: given in a {} sidecar; only {FORMAT} has it",
+                    self.format
+                ));
+            }
+            let taken: Vec<&str> = std::iter::once(self.image.as_str())
+                .chain(self.extra_images.iter().map(|x| x.image.as_str()))
+                .collect();
+            for (name, v) in [("image", &g.image), ("water_image", &g.water_image)] {
+                if !plain(v.as_str()) || taken.contains(&v.as_str()) {
+                    return Err(format!(
+                        "ground.{name}: {v:?} is not a file name in the sidecar's folder other than the map's other images"
+                    ));
+                }
+            }
+            if g.image == g.water_image {
+                return Err("ground: image and water_image are the same file".into());
             }
         }
         if self.extra_images.is_empty() {

@@ -10,13 +10,14 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::cloudmap::{
-    coverage_to_sample, extra_path, extra_writer, file_name, rgba16_writer, sidecar_json, CloudMap,
-    COVERAGE_FULL, MAX_SIDE,
+    coverage_to_sample, extra_path, extra_writer, file_name, ground_writers, rgba16_writer,
+    sidecar_json, CloudMap, COVERAGE_FULL, MAX_SIDE,
 };
 use crate::error::shown;
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, RhLevel};
 use crate::geotiff::{GeoRef, GeoTiffSpec, GeoTiffWriter, PageBand, PageSpec};
+use crate::ground::Ground;
 use crate::meta::{
     AltitudeSource, CloudMapMeta, ExtraImage, ExtraRole, LayerKind, LayerMeta, SourceMeta,
     StructureGrid, FORMAT,
@@ -96,6 +97,8 @@ pub struct Plan {
     placement: Placement,
     rh: Vec<RhLevel>,
     weather: WeatherInputs,
+    /// The ground on the structure lattice, when the forecast has orography (issue 14).
+    ground: Option<Ground>,
 }
 
 impl Plan {
@@ -200,7 +203,12 @@ impl Plan {
             wrap: global,
         };
         let sampler = PixelSampler::new(structure, fc.weather.wind.clone(), placement, lattice);
+        let ground = fc
+            .ground
+            .as_ref()
+            .map(|g| crate::ground::resample::resample(g, &placement, lattice, opts.interp));
         Ok(Plan {
+            ground,
             sampler,
             placement,
             rh: fc.levels.clone(),
@@ -284,6 +292,7 @@ impl Plan {
             meta,
             texels,
             structure,
+            ground: self.ground.clone(),
         }
     }
 
@@ -353,7 +362,15 @@ impl Plan {
         let bands = self.bands(self.height);
         let stats = std::cell::RefCell::new(Stats::default());
         let structure_stats = std::cell::RefCell::new(StructureStats::new());
-        let (extras, listed) = self.extra_writers(png_path)?;
+        let (mut extras, listed) = self.extra_writers(png_path)?;
+        let ground = match &self.ground {
+            Some(g) => {
+                let (meta, writers) = ground_writers(png_path, g)?;
+                extras.extend(writers);
+                Some(meta)
+            }
+            None => None,
+        };
         write_set(
             png_path,
             &[self.source.as_path()],
@@ -392,6 +409,7 @@ impl Plan {
                 self.apply_structure(&mut meta, &structure_stats.borrow());
                 meta.extra_images = listed;
                 meta.structure_grid = Some(self.sampler.lattice());
+                meta.ground = ground;
                 sidecar_json(&meta, name, id, png_path)
             },
         )
@@ -663,6 +681,7 @@ fn build_meta(
         image_id: None,
         extra_images: vec![],
         structure_grid: None,
+        ground: None,
         region: opts.region,
         width: opts.width,
         height: opts.height,

@@ -28,6 +28,7 @@
 use serde::Serialize;
 
 use crate::cloudmap::{CloudMap, COVERAGE_FULL};
+use crate::ground::ProbeGround;
 use crate::meta::{AltitudeSource, LayerKind, StructureGrid};
 use crate::region::Region;
 use crate::weather::{CloudType, PointSource};
@@ -306,11 +307,14 @@ pub struct ProbeLayer {
     pub source: AltitudeSource,
 }
 
-/// What a map holds at one point, per layer.
+/// What a map holds at one point: the ground, and per layer the cloud.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Probe {
     pub lat: f64,
     pub lon: f64,
+    /// The ground there (`ground_m`, `ground_source`, …, `cwat_kg_m2`), flat in the JSON.
+    #[serde(flatten)]
+    pub ground: ProbeGround,
     pub layers: Vec<ProbeLayer>,
 }
 
@@ -372,7 +376,12 @@ impl CloudMap {
                 }
             })
             .collect();
-        Some(Probe { lat, lon, layers })
+        Some(Probe {
+            lat,
+            lon,
+            ground: self.probe_ground(lat, lon),
+            layers,
+        })
     }
 }
 

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
 use stratus_ingest::grib;
+use stratus_ingest::ground::ProbeGround;
 use stratus_ingest::meta::AltitudeSource;
 use stratus_ingest::pipeline::{IngestOptions, Plan};
 use stratus_ingest::spline::Interp;
@@ -289,6 +290,7 @@ fn the_probe_json_is_the_cli_format() {
     let p = Probe {
         lat: 50.0,
         lon: -25.0,
+        ground: ProbeGround::NONE,
         layers: vec![
             ProbeLayer {
                 kind: LayerKind::Low,
@@ -310,7 +312,7 @@ fn the_probe_json_is_the_cli_format() {
     };
     assert_eq!(
         serde_json::to_string(&p).unwrap(),
-        r#"{"lat":50.0,"lon":-25.0,"layers":[{"kind":"low","coverage":0.5,"base_m":600.5,"top_m":1200.0,"type":"cumulus","source":"gfs-layer"},{"kind":"high","coverage":0.0,"base_m":null,"top_m":null,"type":null,"source":"rh-column"}]}"#
+        r#"{"lat":50.0,"lon":-25.0,"ground_m":0.0,"ground_source":"none","land":null,"ice":null,"snow_kg_m2":null,"snow_cover":null,"albedo":null,"cwat_kg_m2":null,"ground_fields":[],"layers":[{"kind":"low","coverage":0.5,"base_m":600.5,"top_m":1200.0,"type":"cumulus","source":"gfs-layer"},{"kind":"high","coverage":0.0,"base_m":null,"top_m":null,"type":null,"source":"rh-column"}]}"#
     );
 }
 

@@ -41,6 +41,7 @@ impl App {
         }
         let ui = r.build_ui(following.as_ref().map(Status::line));
         r.act(&ui.actions, &mut self.opts);
+        pilot::keep_above_ground(&mut r.pilot, &self.opts.map);
         let (tw, th) = (r.screen.config.width, r.screen.config.height);
         if tw == 0 || th == 0 {
             return Ok(());

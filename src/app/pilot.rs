@@ -110,6 +110,17 @@ impl Pilot {
     }
 }
 
+/// How far above the map's terrain the pilot is held: the eye of someone standing on it.
+pub const GROUND_MARGIN_M: f64 = 2.0;
+
+/// Stop the pilot at the terrain: never lower than [`GROUND_MARGIN_M`] above `map`'s ground
+/// there (sea level where the map has none). Flying into a slope holds the aircraft on it,
+/// as the old sea-level floor did; after a step, a follow or a teleport.
+pub fn keep_above_ground(pilot: &mut Pilot, map: &stratus_ingest::CloudMap) {
+    let (ground, _) = map.ground_height_m(pilot.lat, pilot.lon);
+    pilot.alt_m = pilot.alt_m.max(ground + GROUND_MARGIN_M);
+}
+
 /// One frame of `--follow`: read what the simulator sent and put the pilot at the aircraft's
 /// pose (the mouse-look offsets stay: the view still turns from the nose). Before the first
 /// packet the pilot stays where it is.
@@ -170,6 +181,36 @@ mod tests {
             "{}",
             st.line()
         );
+    }
+
+    #[test]
+    fn the_pilot_stops_at_the_terrain() {
+        let t = chrono::TimeZone::with_ymd_and_hms(&chrono::Utc, 2024, 6, 1, 12, 0, 0).unwrap();
+        let r = stratus_ingest::Region::parse("30,40,80,90").unwrap();
+        let mut map = stratus_ingest::CloudMap::from_fn(r, 10, 10, &[], t, |_, _| [0.0; 3]);
+        let mut p = Pilot::at(35.0, 85.0, 1000.0, 0.0, -45.0);
+        keep_above_ground(&mut p, &map);
+        assert_eq!(p.alt_m, 1000.0, "no ground grid: sea level, well below");
+        map.ground = Some(stratus_ingest::ground::Ground {
+            grid: stratus_ingest::meta::StructureGrid::of_map(&r, 2, 2),
+            region: r,
+            height_m: vec![5000.0; 4],
+            land: vec![1.0; 4],
+            ice: vec![0.0; 4],
+            snow_kg_m2: vec![0.0; 4],
+            albedo: vec![0.2; 4],
+            cwat_kg_m2: vec![0.0; 4],
+            fields: vec![stratus_ingest::ground::GroundField::Orography],
+        });
+        // Diving at 45° for a minute from 6 km: held 2 m above the 5 km plateau.
+        p.alt_m = 6000.0;
+        let none = HashSet::new();
+        for _ in 0..600 {
+            p.step(&none, 0.1);
+            keep_above_ground(&mut p, &map);
+            assert!(p.alt_m >= 5000.0 + GROUND_MARGIN_M - 1e-9, "{}", p.alt_m);
+        }
+        assert!((p.alt_m - 5002.0).abs() < 1e-9, "{}", p.alt_m);
     }
 
     #[test]

@@ -29,7 +29,7 @@ use stratus::picture::save_png;
 use stratus::render::{Camera, Renderer, Settings, View};
 
 use super::files::{check_out, map_files};
-use super::options::{parse_camera, progress_bar, LookOpts};
+use super::options::{camera, progress_bar, LookOpts, EYE_HEIGHT_M};
 use crate::cleanup::{self, Removal};
 
 #[derive(clap::Args, Debug)]
@@ -133,7 +133,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             let _ = std::fs::remove_dir(d);
         }
     }
-    let (removed, mp4) = result?;
+    let (removed, mp4, lifted) = result?;
+    if let Some(line) = lifted.line(n) {
+        eprintln!("{line}");
+    }
     let last = n - 1;
     let frames = if n == 1 {
         format!("1 frame {}", frame_name(0))
@@ -267,7 +270,7 @@ fn render_and_commit(
     (w, h): (u32, u32),
     map: &CloudMap,
     settings: &Settings,
-) -> anyhow::Result<(usize, Mp4)> {
+) -> anyhow::Result<(usize, Mp4, Lifted)> {
     let staging = tempfile::Builder::new()
         .prefix(STAGING_PREFIX)
         .rand_bytes(10)
@@ -283,8 +286,10 @@ fn render_and_commit(
         None
     };
     let pb = progress_bar(n, "frames");
+    let mut lifted = Lifted::default();
     for i in 0..n {
-        let (cam, time) = source.at(i, a.fps);
+        let (mut cam, time) = source.at(i, a.fps);
+        lifted.lift(i, &mut cam, map);
         let mut s = settings.clone();
         if let Some(t) = time {
             s.time = t;
@@ -330,7 +335,41 @@ fn render_and_commit(
             removed += 1;
         }
     }
-    Ok((removed, mp4))
+    Ok((removed, mp4, lifted))
+}
+
+/// Frames whose camera the path (or the simulator) put below the map's terrain: each is
+/// lifted to [`EYE_HEIGHT_M`] above it and rendered, and the run says so in one line. A path
+/// keyed over the old flat sea-level ground, or an aircraft on a runway lower than the
+/// forecast's smooth 2.5° terrain, still renders, as a simulator's terrain-following camera
+/// would, instead of failing after minutes of frames.
+#[derive(Debug, Default)]
+struct Lifted {
+    frames: u64,
+    /// The first lifted frame: index, position, its altitude and the ground's.
+    first: Option<(u64, f64, f64, f64, f64)>,
+}
+
+impl Lifted {
+    fn lift(&mut self, i: u64, cam: &mut Camera, map: &CloudMap) {
+        let (ground, _) = map.ground_height_m(cam.lat_deg, cam.lon_deg);
+        if cam.alt_m >= ground {
+            return;
+        }
+        self.frames += 1;
+        self.first
+            .get_or_insert((i, cam.lat_deg, cam.lon_deg, cam.alt_m, ground));
+        cam.alt_m = ground + EYE_HEIGHT_M;
+    }
+
+    /// The warning line, when any frame was lifted.
+    fn line(&self, n: u64) -> Option<String> {
+        let (i, lat, lon, alt, ground) = self.first?;
+        Some(format!(
+            "warning: {} of {n} frames were below the terrain and were rendered {EYE_HEIGHT_M} m above it instead (first: frame {i} at {lat:.3},{lon:.3}, {alt:.0} m under ground at {ground:.0} m)",
+            self.frames
+        ))
+    }
 }
 
 /// Staging folders a killed run left in `out` (older than the ingest library's
@@ -406,7 +445,7 @@ fn follow_setup(a: &Args, follow: &str) -> anyhow::Result<Following> {
         anyhow::bail!("--wait {} must be in (0, {MAX_WAIT_S}] seconds", a.wait);
     }
     // The same check the renderer makes, before a socket is bound.
-    parse_camera("0,0,1000", 0.0, 0.0, a.fov)?;
+    camera(0.0, 0.0, 1000.0, 0.0, 0.0, a.fov)?;
     let source: Source = follow.parse()?;
     Ok(Following {
         follower: Follower::bind(source)?,

@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use stratus::render::{defaults, gpu, Camera, Gpu, Preset, Settings};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
+use stratus_ingest::ground::GroundSource;
 use stratus_ingest::meta::LayerKind;
 use stratus_ingest::pipeline::{validate_rh_cr, IngestOptions, Plan};
 use stratus_ingest::region::{parse_size, Region};
@@ -156,15 +157,89 @@ impl LookOpts {
     }
 }
 
-pub fn parse_camera(s: &str, heading: f64, pitch: f64, fov: f64) -> anyhow::Result<Camera> {
+/// Eye height of `--camera LAT,LON,ground`: a person standing on the terrain.
+pub const EYE_HEIGHT_M: f64 = 2.0;
+
+/// How high `--camera` puts the eye.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CameraAlt {
+    /// Metres above mean sea level (`LAT,LON,ALT_M`).
+    Sea(f64),
+    /// Metres above the terrain there (`LAT,LON,ground` = [`EYE_HEIGHT_M`], `LAT,LON,ground+N`).
+    Ground(f64),
+}
+
+/// `--camera LAT,LON,ALT_M | LAT,LON,ground | LAT,LON,ground+N`, read without the map.
+pub fn parse_camera_spec(s: &str) -> anyhow::Result<(f64, f64, CameraAlt)> {
+    let bad = || {
+        anyhow::anyhow!(
+            "--camera \"{s}\" must be LAT,LON,ALT_M (metres above sea level), LAT,LON,ground or LAT,LON,ground+N (N metres above the terrain)"
+        )
+    };
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [lat, lon, alt] = parts[..] else {
+        return Err(bad());
+    };
+    let num = |x: &str| x.parse::<f64>().ok().filter(|v| v.is_finite());
+    let (lat, lon) = (num(lat).ok_or_else(bad)?, num(lon).ok_or_else(bad)?);
+    let alt = match alt.strip_prefix("ground") {
+        Some("") => CameraAlt::Ground(EYE_HEIGHT_M),
+        Some(rest) => {
+            let n = rest.strip_prefix('+').and_then(num).ok_or_else(bad)?;
+            if n < 0.0 {
+                return Err(bad());
+            }
+            CameraAlt::Ground(n)
+        }
+        None => CameraAlt::Sea(num(alt).ok_or_else(bad)?),
+    };
+    Ok((lat, lon, alt))
+}
+
+/// The camera `--camera` names over `map`: `ground` altitudes are taken from the map's terrain
+/// there ([`CloudMap::ground_height_m`]: sea level where it has none), and a camera below the
+/// terrain is refused, naming both heights.
+pub fn parse_camera(
+    s: &str,
+    heading: f64,
+    pitch: f64,
+    fov: f64,
+    map: &CloudMap,
+) -> anyhow::Result<Camera> {
+    let (lat, lon, alt) = parse_camera_spec(s)?;
+    let (ground, source) = map.ground_height_m(lat, lon);
+    let alt_m = match alt {
+        CameraAlt::Sea(m) => m,
+        CameraAlt::Ground(n) => ground + n,
+    };
+    if alt_m < ground {
+        anyhow::bail!(
+            "--camera {s}: the camera at {alt_m} m is below the ground there ({ground:.0} m, {}); give an altitude above it, or LAT,LON,ground+N",
+            match source {
+                GroundSource::Orography => "the map's terrain from the forecast's orography",
+                GroundSource::None => "sea level",
+            }
+        );
+    }
+    camera(lat, lon, alt_m, heading, pitch, fov)
+}
+
+/// A checked camera at a position, looking along heading and pitch, with a field of view.
+pub fn camera(
+    lat: f64,
+    lon: f64,
+    alt_m: f64,
+    heading: f64,
+    pitch: f64,
+    fov: f64,
+) -> anyhow::Result<Camera> {
     // Named as given: a NaN heading would otherwise surface as a view direction of zero length.
     for (name, v) in [("--heading", heading), ("--pitch", pitch), ("--fov", fov)] {
         if !v.is_finite() {
             anyhow::bail!("{name} {v} must be a finite number");
         }
     }
-    let v = parse_numbers(s, 3, "--camera")?;
-    let mut cam = Camera::new(v[0], v[1], v[2], heading, pitch);
+    let mut cam = Camera::new(lat, lon, alt_m, heading, pitch);
     cam.fov_deg = fov;
     cam.validate()?;
     Ok(cam)

@@ -1,10 +1,12 @@
-//! `stratus probe`: what a map holds at one point, per layer — coverage, cloud base and top, type
-//! and where the heights came from. What a user checks a map against a sounding or a METAR with.
+//! `stratus probe`: what a map holds at one point — the ground (terrain height, surface, the
+//! column's cloud water) and per layer coverage, cloud base and top, type and where the heights
+//! came from. What a user checks a map against a sounding or a METAR with.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use stratus_ingest::error::shown;
+use stratus_ingest::ground::GroundSource;
 use stratus_ingest::series::open_map;
 
 use super::options::{parse_numbers, parse_time};
@@ -21,7 +23,9 @@ pub struct Args {
     /// The point, LAT,LON in degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub at: String,
-    /// Print JSON: {"lat", "lon", "layers": [{"kind", "coverage", "base_m", "top_m", "type", "source"}]}.
+    /// Print JSON: {"lat", "lon", "ground_m", "ground_source", "land", "ice", "snow_kg_m2",
+    /// "snow_cover", "albedo", "cwat_kg_m2", "ground_fields",
+    /// "layers": [{"kind", "coverage", "base_m", "top_m", "type", "source"}]}.
     #[arg(long)]
     pub json: bool,
 }
@@ -47,6 +51,26 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     out!("{lat:.4}, {lon:.4} in {}", shown(&a.map))?;
+    let g = &p.ground;
+    match g.ground_source {
+        GroundSource::Orography => {
+            let f = |v: Option<f64>, d: usize| v.map_or("-".to_string(), |v| format!("{v:.d$}"));
+            out!(
+                "ground  {:.0} m (orography)  land {}  ice {}  snow {} kg/m² (cover {})  albedo {}",
+                g.ground_m.round() + 0.0,
+                f(g.land, 2),
+                f(g.ice, 2),
+                f(g.snow_kg_m2, 1),
+                f(g.snow_cover, 2),
+                f(g.albedo, 2)
+            )?;
+        }
+        GroundSource::None => out!("ground  0 m (sea level: the map has no ground grid here)")?,
+    }
+    match g.cwat_kg_m2 {
+        Some(c) => out!("column cloud water {c:.3} kg/m²")?,
+        None => out!("column cloud water - (not in the forecast)")?,
+    }
     out!(
         "{:<7} {:>8} {:>8} {:>8}  {:<14} source",
         "layer",

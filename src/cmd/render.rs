@@ -15,7 +15,9 @@ pub struct Args {
     /// CloudMap sidecar (MAP.json) or series sidecar written by `stratus ingest`.
     #[arg(long)]
     pub map: PathBuf,
-    /// Camera position LAT,LON,ALT_M (degrees, degrees, metres above sea level).
+    /// Camera position LAT,LON,ALT_M (degrees, degrees, metres above sea level), or
+    /// LAT,LON,ground (2 m above the map's terrain) or LAT,LON,ground+N (N m above it). A
+    /// camera below the terrain is refused.
     #[arg(long, allow_hyphen_values = true, required_unless_present = "top_down")]
     pub camera: Option<String>,
     /// Render the map's whole region straight down (orthographic, what `score` compares).
@@ -52,7 +54,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let settings = a.look.settings(&map, &a.map)?;
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,
-        (Some(c), false) => View::Perspective(parse_camera(c, a.heading, a.pitch, a.fov)?),
+        (Some(c), false) => View::Perspective(parse_camera(c, a.heading, a.pitch, a.fov, &map)?),
         (None, false) => anyhow::bail!("--camera LAT,LON,ALT_M or --top-down is required"),
     };
     let (w, h) = parse_size(&a.size)?;

@@ -218,6 +218,7 @@ pub fn advect(map: &CloudMap, seconds: f64) -> CloudMap {
         meta: map.meta.clone(),
         texels,
         structure: map.structure.clone(),
+        ground: map.ground.clone(),
     };
     shift_time(&mut out, seconds);
     crate::pipeline::fill_stats(&mut out.meta, &out.texels);
@@ -284,10 +285,18 @@ pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<Clou
         (1.0 - w) * sample_coverage(a, c, la, lo) + w * sample_coverage(b, c, lb, ob)
     });
     let nearer = if w < 0.5 { a } else { b };
+    // The ground in between: its fields mixed in time where both steps have it on one
+    // lattice (the terrain is the same; snow, ice and cloud water change), else the nearer's.
+    let ground = match (&a.ground, &b.ground) {
+        (Some(ga), Some(gb)) => ga.mix(gb, w as f32),
+        _ => None,
+    }
+    .or_else(|| nearer.ground.clone());
     let mut out = CloudMap {
         meta: nearer.meta.clone(),
         texels,
         structure: nearer.structure.clone(),
+        ground,
     };
     let to_moment = if w < 0.5 { w } else { w - 1.0 } * interval_s;
     shift_time(&mut out, to_moment);

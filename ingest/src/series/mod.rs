@@ -110,6 +110,9 @@ impl Series {
             }
             let mut images = vec![m.image_path(&sidecar)];
             images.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
+            if let Some(g) = &m.ground {
+                images.extend([dir.join(&g.image), dir.join(&g.water_image)]);
+            }
             if let Some(w) = &s.winds {
                 images.extend([dir.join(&w.u), dir.join(&w.v)]);
             }
@@ -199,7 +202,7 @@ impl Series {
         blend(&a, &b, w, interval).map_err(|e| IngestError::series(&self.path, e))
     }
 
-    /// Every file the series reads: its step sidecars, PNGs and structure images.
+    /// Every file the series reads: its step sidecars, PNGs, structure and ground images.
     pub fn files(&self) -> Vec<PathBuf> {
         let dir = folder(&self.path);
         let mut v = Vec::new();
@@ -207,6 +210,9 @@ impl Series {
             let sidecar = dir.join(&s.map);
             v.push(m.image_path(&sidecar));
             v.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
+            if let Some(g) = &m.ground {
+                v.extend([dir.join(&g.image), dir.join(&g.water_image)]);
+            }
             v.push(sidecar);
         }
         v

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::cloudmap::{extra_path, load_meta};
 use crate::error::{IngestError, Result};
 use crate::forecast::{Forecast, LevelSelect};
+use crate::ground::image::ground_paths;
 use crate::meta::{CloudMapMeta, ExtraRole};
 use crate::output::{check_output, commit_staged, ensure_not_input, write_atomic, StagingDir};
 use crate::pipeline::{IngestOptions, Plan};
@@ -24,13 +25,16 @@ pub fn step_png(out: &Path, hour: f64) -> PathBuf {
     out.with_file_name(format!("{stem}-{}.png", hour_tag(hour)))
 }
 
-/// Every file a series written to `out` consists of: per step its extra images, PNG and
-/// sidecar, then the series sidecar (`out` with `.json`), in commit order.
+/// Every file a series written to `out` may consist of: per step its extra images, ground
+/// images (when its forecast has orography), PNG and sidecar, then the series sidecar (`out`
+/// with `.json`), in commit order.
 pub fn series_outputs(out: &Path, steps: &[StepSource]) -> Vec<PathBuf> {
     let mut v = Vec::new();
     for s in steps {
         let png = step_png(out, s.hour);
         v.extend(ExtraRole::ALL.iter().map(|&r| extra_path(&png, r)));
+        let (surface, water) = ground_paths(&png);
+        v.extend([surface, water]);
         v.push(png.clone());
         v.push(png.with_extension("json"));
     }
@@ -87,7 +91,19 @@ pub fn write_series(
         use std::io::Write;
         w.write_all(&json).map_err(|e| e.to_string())
     })?;
-    let moves: Vec<(PathBuf, PathBuf)> = finals.iter().map(|f| (staged(f), f.clone())).collect();
+    // A step without orography wrote no ground images: only those are left out.
+    let ground_files: Vec<PathBuf> = steps
+        .iter()
+        .flat_map(|s| {
+            let (a, b) = ground_paths(&step_png(out, s.hour));
+            [a, b]
+        })
+        .collect();
+    let moves: Vec<(PathBuf, PathBuf)> = finals
+        .iter()
+        .filter(|f| !ground_files.contains(f) || staged(f).is_file())
+        .map(|f| (staged(f), f.clone()))
+        .collect();
     commit_staged(&moves, &series_json)?;
     Ok((series_json, meta))
 }
