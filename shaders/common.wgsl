@@ -77,6 +77,11 @@ struct ShadowParams {
     enabled: u32,               // 0: no volume (the preset's switch is off); look-ups give 0
     steps: u32,                 // samples per path in the shadow stage
     max_path_m: f32,            // longest path toward the key light (m)
+    ground_uv: vec4<f32>,       // region uv → ground texture uv: uv * xy + zw
+    ground_top_m: f32,          // highest terrain in the map (m); the terrain march starts below it
+    ground_on: u32,             // 0: no ground in the map (sea level, a plain albedo)
+    terrain_on: u32,            // 0: the preset's terrain switch is off (sea-level sphere)
+    _pad: u32,
 };
 
 // The exposure stage's settings (render::exposure::ExposureParams) and result.

@@ -1,6 +1,6 @@
 // Exposure stage: meters the frame as the present stage will show it (cloud over background,
 // before the tone curve) on a 64×64 grid, and adapts the exposure toward a mid-grey key for the
-// log-mean luminance, from 2 EV under to 3 EV over the Sun's-height exposure the CPU gives
+// log-mean luminance, from ½ EV under to 3 EV over the Sun's-height exposure the CPU gives
 // (Frame.exposure): an eye under an overcast opens up, a bright deck from above stays bright
 // (as snow does), and dusk and night stay dark (no opening up once the Sun is down; DESIGN §8).
 // One workgroup.
@@ -15,7 +15,7 @@ const METER: u32 = 64u;
 const PER_LANE: u32 = 16u;
 // The luminance the log-mean is exposed to, and how far adaptation may go from the anchor.
 const KEY: f32 = 0.18;
-const DARKER: f32 = 4.0;
+const DARKER: f32 = 1.5;
 const BRIGHTER: f32 = 8.0;
 
 var<workgroup> sums: array<f32, 256>;

@@ -87,6 +87,13 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
     }
+    // The terrain hides what lies behind it (the score's nadir rays see the cloud above it).
+    if (!has_flag(f, FLAG_NO_SKY)) {
+        let hit = terrain_hit(r.up * (EARTH_R + r.h), r.h, mu, r.d, end_all);
+        if (hit >= 0.0) {
+            end_all = hit;
+        }
+    }
     // At most two segments: above and below the innermost shell's bottom.
     let inner = shell_hits(r.h, mu, f.shell_base_m);
     var seg = vec2<f32>(max(outer.x, 0.0), end_all);
@@ -261,8 +268,8 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
             tau += column_od(far, altitude_at(h, dot(key, up), reach)).x;
             od_up = column_od(pos, h).y;
             // Light the ground below sends back up, for the bases (its albedo, in its shadows).
-            let g = up * EARTH_R;
-            bounce = DEFAULT_ALBEDO * ground_irradiance(g, up, 0.0);
+            let gr = ground_at(uv);
+            bounce = gr.yzw * ground_irradiance(up * (EARTH_R + gr.x), up, gr.x);
         }
         // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
         // black, plus two octaves of Hillaire's multiple-scattering approximation

@@ -7,6 +7,8 @@
 @group(3) @binding(2) var<uniform> sh: ShadowParams;
 // The sky around the camera (render::atmosphere's sky-view table).
 @group(3) @binding(3) var sky_tex: texture_2d<f32>;
+// The map's ground (render::ground): terrain height (m) and surface albedo (RGB).
+@group(3) @binding(4) var ground_tex: texture_2d<f32>;
 
 // Asymmetry of cloud droplets' scattering, for the diffuse (two-stream) light (DESIGN §8).
 const G_CLOUD: f32 = 0.85;
@@ -40,6 +42,87 @@ fn key_through(tau: f32, mu0: f32) -> f32 {
 
 // Ground albedo where the map has no ground (a dull land).
 const DEFAULT_ALBEDO: vec3<f32> = vec3<f32>(0.08, 0.10, 0.07);
+
+// The ground at region uv: (terrain height m, albedo rgb); sea level and the default outside
+// the region or without a ground.
+fn ground_at(uv: vec2<f32>) -> vec4<f32> {
+    if (sh.ground_on == 0u || uv.x < 0.0) {
+        return vec4<f32>(0.0, DEFAULT_ALBEDO);
+    }
+    let g = textureSampleLevel(ground_tex, od_sampler, uv * sh.ground_uv.xy + sh.ground_uv.zw, 0.0);
+    return vec4<f32>(max(g.r, 0.0), g.gba);
+}
+
+// Terrain samples along a ray and the halvings that refine the hit.
+const TERRAIN_STEPS: u32 = 48u;
+const TERRAIN_REFINE: u32 = 6u;
+
+// Distance along the ray from altitude h (zenith cosine mu to the local up, direction d from
+// origin o) to the terrain, or -1 where it meets none before `t_max`. Marched as a height
+// field below the highest terrain, in steps growing with distance, then bisected.
+fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
+    if (sh.terrain_on == 0u) {
+        return -1.0;
+    }
+    let top = shell_hits(h, mu, sh.ground_top_m + 1.0);
+    var t0 = 0.0;
+    if (h > sh.ground_top_m + 1.0) {
+        if (top.x > top.y || top.y < 0.0) {
+            return -1.0;
+        }
+        t0 = max(top.x, 0.0);
+    }
+    // Below the top the ray leaves the terrain's shell at top.y (or runs on to t_max).
+    var t1 = t_max;
+    if (top.x <= top.y && top.y > t0) {
+        t1 = min(t1, top.y);
+    }
+    if (t1 <= t0) {
+        return -1.0;
+    }
+    var lo = t0;
+    var prev = t0;
+    var hit = -1.0;
+    for (var i = 0u; i < TERRAIN_STEPS; i++) {
+        let x = (f32(i) + 1.0) / f32(TERRAIN_STEPS);
+        let t = t0 + (t1 - t0) * x * x;
+        let p = o + d * t;
+        if (altitude_at(h, mu, t) <= ground_at(region_uv(f, lat_lon(p))).x) {
+            lo = prev;
+            hit = t;
+            break;
+        }
+        prev = t;
+    }
+    if (hit < 0.0) {
+        return -1.0;
+    }
+    for (var k = 0u; k < TERRAIN_REFINE; k++) {
+        let t = 0.5 * (lo + hit);
+        let p = o + d * t;
+        if (altitude_at(h, mu, t) <= ground_at(region_uv(f, lat_lon(p))).x) {
+            hit = t;
+        } else {
+            lo = t;
+        }
+    }
+    return hit;
+}
+
+// The terrain's normal at p from the height field's slope over about a kilometre.
+fn terrain_normal(p: vec3<f32>) -> vec3<f32> {
+    let n = normalize(p);
+    if (sh.ground_on == 0u) {
+        return n;
+    }
+    let east = normalize(vec3<f32>(-n.y, n.x, 0.0) + vec3<f32>(1e-9, 0.0, 0.0));
+    let north = cross(n, east);
+    let step = 2000.0;
+    let h0 = ground_at(region_uv(f, lat_lon(p))).x;
+    let he = ground_at(region_uv(f, lat_lon(p + east * step))).x;
+    let hn = ground_at(region_uv(f, lat_lon(p + north * step))).x;
+    return normalize(n * step - east * (he - h0) - north * (hn - h0));
+}
 
 // Irradiance on level ground at p (unit up n, altitude hg) over π: the Sun or Moon through the
 // clouds' column, and the sky through the column above.
@@ -121,14 +204,25 @@ fn background(v: vec3<f32>) -> vec3<f32> {
     let up = f.cam_up;
     let h = f.cam_alt_m;
     let mu = dot(v, up);
+    let o = up * (EARTH_R + h);
     let ground = shell_hits(h, mu, 0.0);
+    var t_ground = -1.0;
     if (ground.x <= ground.y && ground.y > 0.0) {
+        t_ground = max(ground.x, 0.0);
+    }
+    let t_far = select(2.0e6, t_ground, t_ground >= 0.0);
+    let t_terrain = terrain_hit(o, h, mu, v, t_far);
+    if (t_terrain >= 0.0) {
+        t_ground = t_terrain;
+    }
+    if (t_ground >= 0.0) {
         // Ground: its albedo under Sun and sky through the clouds, fading into the haze.
-        let t = max(ground.x, 0.0);
-        let p = up * (EARTH_R + h) + v * t;
-        let n = normalize(p);
-        let lit = DEFAULT_ALBEDO * ground_irradiance(p, n, 0.0);
-        let fog = haze_transmittance(f, h, 0.0, t);
+        let t = t_ground;
+        let p = o + v * t;
+        let g = ground_at(region_uv(f, lat_lon(p)));
+        let n = terrain_normal(p);
+        let lit = g.yzw * ground_irradiance(p, n, g.x);
+        let fog = haze_transmittance(f, h, g.x, t);
         return lit * fog + sky_seen(v) * (1.0 - fog);
     }
     var c = sky_seen(v);

@@ -30,7 +30,7 @@ pub struct LookOpts {
     /// Sun direction E,N,U in the camera's local frame, instead of the computed one.
     #[arg(long, allow_hyphen_values = true)]
     pub sun_dir: Option<String>,
-    /// Exposure: `auto` adapts to the scene (metered each frame, from 2 stops under to 3 over the
+    /// Exposure: `auto` adapts to the scene (metered each frame, from ½ stop under to 3 over the
     /// Sun's-height exposure); a number of stops fixes it (over a daylight exposure), so pictures
     /// can be compared by luminance.
     #[arg(long, default_value = "auto", allow_hyphen_values = true, value_parser = parse_exposure)]

@@ -98,8 +98,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         alt += 2000.0;
     }
-    // The map's base and top of each layer where it has cloud; the ground at sea level (the
-    // renderer has no terrain yet).
+    // The map's base and top of each layer where it has cloud; the ground: the map's terrain
+    // (sea level where it has none).
     for (x, dir) in columns.iter().enumerate() {
         let (lat, lon) = (dir.z.asin().to_degrees(), dir.y.atan2(dir.x).to_degrees());
         if let Some(p) = map.probe(lat, lon) {
@@ -113,7 +113,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 }
             }
         }
-        let ground = row_of(0.0).clamp(0.0, h as f64 - 1.0) as u32;
+        let (terrain_m, _) = map.ground_height_m(lat, lon);
+        let ground = row_of(terrain_m).clamp(0.0, h as f64 - 1.0) as u32;
         for y in ground.saturating_sub(1)..h {
             img.put_pixel(
                 x as u32,

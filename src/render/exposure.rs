@@ -1,6 +1,6 @@
 //! Exposure stage: dispatches shaders/exposure.wgsl, which meters each frame as it will be shown
 //! (cloud over background) and sets the exposure the present stage applies: adapted to the scene
-//! from 2 EV under to 3 EV over the Sun's-height exposure (opening up only by day), or fixed (`render --exposure EV`). The result stays
+//! from ½ EV under to 3 EV over the Sun's-height exposure (opening up only by day), or fixed (`render --exposure EV`). The result stays
 //! on the GPU (a storage buffer the present stage reads): nothing waits for it.
 
 use super::contract::{self, Binding, Resource};

@@ -14,6 +14,7 @@ pub mod contract;
 pub mod exposure;
 pub mod frame;
 pub mod gpu;
+pub mod ground;
 pub mod march;
 pub mod noise;
 pub mod present;
@@ -355,13 +356,14 @@ impl Renderer {
             present::PresentPass::new(&gpu, &march.uniforms, &exposure.state, &scene_layout);
         let map_bind = march.bind_map(&gpu, &weather);
         let atmosphere = atmosphere::AtmospherePass::new(&gpu, &march.uniforms);
-        let shadow = shadow::ShadowPass::new(
+        let mut shadow = shadow::ShadowPass::new(
             &gpu,
             &march,
             scene_layout,
             &map.meta.region,
             atmosphere.sky_view().create_view(&Default::default()),
         );
+        shadow.set_ground(&gpu, map.ground());
         let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
         let stats = stats::StatsReader::new(&gpu);
         Renderer {
@@ -396,6 +398,7 @@ impl Renderer {
         if map.meta.region != self.meta.region {
             self.shadow.set_region(&self.gpu, &map.meta.region);
         }
+        self.shadow.set_ground(&self.gpu, map.ground());
         self.map_generation += 1;
         self.meta = map.meta.clone();
     }
@@ -414,6 +417,9 @@ impl Renderer {
         }
         if a.meta.region != self.meta.region {
             self.shadow.set_region(&self.gpu, &a.meta.region);
+        }
+        if self.map_generation == 0 || a.meta != self.meta {
+            self.shadow.set_ground(&self.gpu, a.ground());
         }
         self.map_generation += 1;
         self.meta = a.meta.clone();
@@ -528,7 +534,7 @@ impl Renderer {
             march,
             map_bind,
             &uniforms,
-            settings.march.column_light,
+            (settings.march.column_light, settings.march.terrain),
             *map_generation,
         );
         enc.clear_buffer(&t.cut_mask, 0, None);

@@ -58,6 +58,7 @@ impl Preset {
                 early_exit: 0.05,
                 detail: false,
                 column_light: true,
+                terrain: true,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -70,6 +71,7 @@ impl Preset {
                 early_exit: 0.02,
                 detail: true,
                 column_light: true,
+                terrain: true,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -82,6 +84,7 @@ impl Preset {
                 early_exit: 0.01,
                 detail: true,
                 column_light: true,
+                terrain: true,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -94,6 +97,7 @@ impl Preset {
                 early_exit: 0.0,
                 detail: true,
                 column_light: true,
+                terrain: true,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -156,6 +160,8 @@ pub struct MarchParams {
     /// Full-column light and cloud shadows (render::shadow): the light beyond the short light
     /// march, the sky through the column above, the ground in the clouds' shadows.
     pub column_light: bool,
+    /// The forecast's terrain marched as a height field (else the ground is a sea-level sphere).
+    pub terrain: bool,
     pub shortcuts: Shortcuts,
 }
 

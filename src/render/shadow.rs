@@ -31,6 +31,15 @@ crate::gpu_struct! {
         pub steps: u32,
         /// Longest path toward the key light (m).
         pub max_path_m: f32,
+        /// Region uv → ground texture uv: uv · (x, y) + (z, w) (`Ground::texture_transform`).
+        pub ground_uv: [f32; 4],
+        /// Highest terrain in the map (m).
+        pub ground_top_m: f32,
+        /// 1 when the map has a ground (render::ground), else sea level and a plain albedo.
+        pub ground_on: u32,
+        /// 1 when the preset draws the terrain.
+        pub terrain_on: u32,
+        pub _pad: u32,
     }
 }
 
@@ -64,6 +73,12 @@ pub const SCENE_BINDINGS: &[Binding] = &[
     Binding {
         group: SCENE_GROUP,
         binding: 3,
+        resource: Resource::Texture2d { filterable: true },
+    },
+    // The map's ground (render::ground).
+    Binding {
+        group: SCENE_GROUP,
+        binding: 4,
         resource: Resource::Texture2d { filterable: true },
     },
 ];
@@ -174,6 +189,9 @@ pub struct ShadowPass {
     sampler: wgpu::Sampler,
     params: wgpu::Buffer,
     sky_view: wgpu::TextureView,
+    ground: wgpu::TextureView,
+    /// The ground's uv transform and highest terrain; `None` without a ground.
+    ground_fit: Option<([f32; 4], f32)>,
     size: (u32, u32, u32),
     volume: wgpu::Texture,
     own_bind: wgpu::BindGroup,
@@ -231,12 +249,14 @@ impl ShadowPass {
             ..Default::default()
         });
         let size = volume_size(region);
+        let (ground_tex, _) = super::ground::upload(gpu, None);
+        let ground = ground_tex.create_view(&Default::default());
         let (volume, own_bind, scene_bind) = Self::make_volume(
             gpu,
             size,
             &own_layout,
             &scene_layout,
-            (&sampler, &params, &sky_view),
+            (&sampler, &params, &sky_view, &ground),
         );
         ShadowPass {
             pipeline,
@@ -245,6 +265,8 @@ impl ShadowPass {
             sampler,
             params,
             sky_view,
+            ground,
+            ground_fit: None,
             size,
             volume,
             own_bind,
@@ -259,7 +281,12 @@ impl ShadowPass {
         (w, h, d): (u32, u32, u32),
         own_layout: &wgpu::BindGroupLayout,
         scene_layout: &wgpu::BindGroupLayout,
-        (sampler, params, sky_view): (&wgpu::Sampler, &wgpu::Buffer, &wgpu::TextureView),
+        (sampler, params, sky_view, ground): (
+            &wgpu::Sampler,
+            &wgpu::Buffer,
+            &wgpu::TextureView,
+            &wgpu::TextureView,
+        ),
     ) -> (wgpu::Texture, wgpu::BindGroup, wgpu::BindGroup) {
         let dev = &gpu.device;
         let volume = dev.create_texture(&wgpu::TextureDescriptor {
@@ -296,6 +323,7 @@ impl ShadowPass {
                 R::Sampler(sampler),
                 R::Buffer(params.as_entire_buffer_binding()),
                 R::TextureView(sky_view),
+                R::TextureView(ground),
             ],
         );
         (volume, own, scene)
@@ -305,15 +333,28 @@ impl ShadowPass {
     pub fn set_region(&mut self, gpu: &Gpu, region: &Region) {
         let size = volume_size(region);
         if size != self.size {
-            (self.volume, self.own_bind, self.scene_bind) = Self::make_volume(
-                gpu,
-                size,
-                &self.own_layout,
-                &self.scene_layout,
-                (&self.sampler, &self.params, &self.sky_view),
-            );
             self.size = size;
+            self.rebind(gpu);
         }
+        self.last = None;
+    }
+
+    /// A map's ground (or none: sea level and a plain albedo).
+    pub fn set_ground(&mut self, gpu: &Gpu, ground: Option<&stratus_ingest::ground::Ground>) {
+        let (tex, uv) = super::ground::upload(gpu, ground);
+        self.ground = tex.create_view(&Default::default());
+        self.ground_fit = ground.map(|g| (uv, g.height_range().1.max(0.0) as f32));
+        self.rebind(gpu);
+    }
+
+    fn rebind(&mut self, gpu: &Gpu) {
+        (self.volume, self.own_bind, self.scene_bind) = Self::make_volume(
+            gpu,
+            self.size,
+            &self.own_layout,
+            &self.scene_layout,
+            (&self.sampler, &self.params, &self.sky_view, &self.ground),
+        );
         self.last = None;
     }
 
@@ -338,7 +379,7 @@ impl ShadowPass {
         march: &MarchPass,
         map_bind: &wgpu::BindGroup,
         u: &FrameUniforms,
-        enabled: bool,
+        (enabled, terrain): (bool, bool),
         map_generation: u64,
     ) -> bool {
         let key_dir = if u.sun_is_key != 0 {
@@ -354,7 +395,15 @@ impl ShadowPass {
             enabled: u32::from(enabled && u.shell_top_m < 1.0e5),
             steps: STEPS,
             max_path_m: MAX_PATH_M,
+            ground_uv: self.ground_fit.map_or([1.0, 1.0, 0.0, 0.0], |g| g.0),
+            ground_top_m: self.ground_fit.map_or(0.0, |g| g.1),
+            ground_on: u32::from(self.ground_fit.is_some()),
+            terrain_on: u32::from(terrain && self.ground_fit.is_some()),
+            _pad: 0,
         };
+        // The ground's part can change without the volume (the preset's terrain switch).
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let stale = self
             .last
             .as_ref()
@@ -362,8 +411,6 @@ impl ShadowPass {
         if !stale {
             return false;
         }
-        gpu.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         self.last = Some(inputs);
         if params.enabled == 0 {
             return false;
