@@ -224,3 +224,43 @@ fn maps_tiny_and_too_large() {
     // West half cloud, east half clear.
     assert!(a[0] > 0.9 && a[31] == 0.0, "{} {}", a[0], a[31]);
 }
+
+/// The light and the scene at their extremes (issue 14): the real East Asia map with its
+/// terrain, every Sun (high, on the horizon, below it) from every camera (on the Tibetan
+/// terrain, at 80 km, straight up, straight down). The cloud layer is finite and bounded, and
+/// the exposure the frame was shown with is a finite positive number.
+#[path = "common/mod.rs"]
+mod common;
+
+#[test]
+fn light_and_terrain_at_the_extremes() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let sidecar = common::real_map(dir.path(), "ea", "0,55,39,105", "260x220");
+    let map = CloudMap::load(&sidecar).expect("the map");
+    let (ground, _) = map.ground_height_m(33.0, 85.0);
+    assert!(ground > 4000.0, "Tibet's ground is {ground} m");
+    let cameras = [
+        ("on the terrain", cam(33.0, 85.0, ground + 2.0, 0.0, 10.0)),
+        ("80 km up", cam(30.0, 80.0, 80_000.0, 0.0, -60.0)),
+        ("straight up", cam(33.0, 85.0, ground + 2.0, 0.0, 90.0)),
+        ("straight down", cam(33.0, 85.0, 12_000.0, 0.0, -90.0)),
+    ];
+    for (sun, enu) in [
+        ("high Sun", DVec3::new(0.3, 0.2, 1.0)),
+        ("Sun on the horizon", DVec3::X),
+        ("Sun below it", DVec3::new(0.0, 1.0, -0.3)),
+    ] {
+        let mut s = settings();
+        s.sun_override = Some(enu);
+        for (where_, view) in cameras {
+            let case = format!("{sun}, {where_}");
+            let o = go(&map, view, &s, &case);
+            let e = renderer().read_exposure().expect("the exposure");
+            assert!(
+                e.value.is_finite() && e.value > 0.0 && e.metered.is_finite(),
+                "{case}: exposure {e:?}"
+            );
+            assert!(o.pixels.len() == o.cloud.len() * 4, "{case}");
+        }
+    }
+}

@@ -101,7 +101,9 @@ impl Controls {
         s.density_mul = self.density;
         s.extinction = self.extinction;
         s.hg_g = self.hg_g;
+        // The panel's EV is an offset over the adapted exposure; the eye adapts over ~10 frames.
         s.exposure_ev = self.exposure;
+        s.exposure_rate = WINDOW_ADAPTATION;
         s.frame_index = frame;
         if self.sun_override {
             let (a, e) = (
@@ -117,6 +119,9 @@ impl Controls {
         s
     }
 }
+
+/// Share of the way (in stops) to the metered exposure the window goes each frame.
+pub const WINDOW_ADAPTATION: f32 = 0.1;
 
 /// Local mean solar time at a longitude, as HH:MM.
 pub fn solar_time(utc: DateTime<Utc>, lon: f64) -> String {

@@ -61,21 +61,14 @@ pub struct AtmospherePass {
     pub builds: u32,
 }
 
-fn table(dev: &wgpu::Device, label: &str, (w, h): (u32, u32)) -> wgpu::Texture {
-    dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: LUT_FORMAT,
-        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
+fn table(dev: &wgpu::Device, label: &str, size: (u32, u32)) -> wgpu::Texture {
+    super::texture_2d(
+        dev,
+        label,
+        size,
+        LUT_FORMAT,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+    )
 }
 
 impl AtmospherePass {

@@ -63,20 +63,13 @@ pub fn upload(gpu: &super::Gpu, g: Option<&Ground>) -> (wgpu::Texture, [f32; 4])
             [1.0, 1.0, 0.0, 0.0],
         ),
     };
-    let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("ground"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: FORMAT,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let tex = super::texture_2d(
+        &gpu.device,
+        "ground",
+        (w, h),
+        FORMAT,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+    );
     super::weather::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
     (tex, uv)
 }

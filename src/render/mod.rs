@@ -283,7 +283,7 @@ impl Targets {
 }
 
 /// A single-level 2D texture.
-fn texture_2d(
+pub(crate) fn texture_2d(
     dev: &wgpu::Device,
     label: &str,
     (width, height): (u32, u32),
@@ -643,6 +643,21 @@ impl Renderer {
     /// ones are ready since the last call.
     pub fn poll_stats(&mut self) -> Option<FrameStats> {
         self.stats.poll(&self.gpu, self.timer.as_ref())
+    }
+
+    /// The exposure the last submitted frame was shown with (waits for it).
+    pub fn read_exposure(&self) -> Result<exposure::ExposureState, RenderError> {
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        let rb = readback::Pending::buffer(&self.gpu, &mut enc, &self.exposure.state);
+        self.gpu.queue.submit([enc.finish()]);
+        let bytes = rb.finish(&self.gpu)?;
+        Ok(bytemuck::pod_read_unaligned(&bytes))
+    }
+
+    /// How many times the full-column light volume and the sky-view table have been made
+    /// (they are per change of the Sun or the map, not per frame).
+    pub fn light_builds(&self) -> (u32, u32) {
+        (self.shadow.builds, self.atmosphere.builds)
     }
 
     /// Read the work counters and pass times of the last submitted frame (waits for it).
