@@ -46,28 +46,31 @@ fn path_od(p0: vec3<f32>, h0: f32, d: vec3<f32>) -> f32 {
     return tau * f.extinction;
 }
 
-@compute @workgroup_size(4, 4, 4)
+// One invocation per column of texels: straight up is one integral down the column, shared by
+// its levels (a running sum from the top, two samples between level centres).
+@compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let dims = textureDimensions(od_out);
-    if (any(id >= dims)) {
+    if (any(id.xy >= dims.xy)) {
         return;
     }
-    let uvw = (vec3<f32>(id) + 0.5) / vec3<f32>(dims);
-    let lat = radians(f.region_north - uvw.y * (f.region_north - f.region_south));
-    let lon = radians(f.region_west + uvw.x * f.region_lon_span);
+    let uv = (vec2<f32>(id.xy) + 0.5) / vec2<f32>(dims.xy);
+    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
+    let lon = radians(f.region_west + uv.x * f.region_lon_span);
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
-    let h0 = sh.bottom_m + uvw.z * (sh.top_m - sh.bottom_m);
-    let p0 = up * (EARTH_R + h0);
-    let toward_key = path_od(p0, h0, sh.key_dir);
-    // Straight up: the same column all the way, evenly in altitude.
-    let n = sh.steps;
-    let dz = (sh.top_m - h0) / f32(n);
+    let span = sh.top_m - sh.bottom_m;
     var tau_up = 0.0;
-    let uv = uvw.xy;
-    for (var i = 0u; i < n; i++) {
-        let h = h0 + (f32(i) + 0.5) * dz;
-        tau_up += density_uv(uv, h, up * (EARTH_R + h), false) * dz;
+    var above = sh.top_m;
+    for (var k = i32(dims.z) - 1; k >= 0; k--) {
+        let h0 = sh.bottom_m + (f32(k) + 0.5) / f32(dims.z) * span;
+        let dz = (above - h0) * 0.5;
+        for (var j = 0; j < 2; j++) {
+            let h = h0 + (f32(j) + 0.5) * dz;
+            tau_up += density_uv(uv, h, up * (EARTH_R + h), false) * dz;
+        }
+        above = h0;
+        let p0 = up * (EARTH_R + h0);
+        let od = min(vec2<f32>(path_od(p0, h0, sh.key_dir), tau_up * f.extinction), vec2<f32>(6.0e4));
+        textureStore(od_out, vec3<u32>(id.xy, u32(k)), vec4<f32>(od, 0.0, 0.0));
     }
-    let od = min(vec2<f32>(toward_key, tau_up * f.extinction), vec2<f32>(6.0e4));
-    textureStore(od_out, id, vec4<f32>(od, 0.0, 0.0));
 }

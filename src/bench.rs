@@ -113,6 +113,11 @@ pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
     v
 }
 
+/// Whether a row times a per-change table rather than frames.
+pub fn is_per_change(r: &Row) -> bool {
+    r.config.starts_with("per change")
+}
+
 /// The configuration whose frames each pay for the per-change tables.
 pub const SUN_MOVING: &str = "balanced, Sun moving";
 
@@ -232,10 +237,35 @@ pub fn run(
                 cut_pct: 100.0 * small.stats.cut_rays as f64 / px,
             });
         }
+        // The per-change tables alone (not per frame): wall time of each made again.
+        let mut s = base.clone();
+        s.march = Preset::Balanced.params();
+        let (sky_ms, volume_ms) = r.time_per_change(&sc.view, size.0, size.1, &s)?;
+        for (config, ms) in [
+            ("per change: sky-view table", sky_ms),
+            ("per change: light volume", volume_ms),
+        ] {
+            rows.push(Row {
+                scene: sc.name.into(),
+                config: config.into(),
+                width: size.0,
+                height: size.1,
+                frame_ms: ms,
+                timed_by: "wall",
+                steps_per_px: 0.0,
+                density_per_px: 0.0,
+                light_per_px: 0.0,
+                speedup_vs_reference: None,
+                alpha_mae: None,
+                rgb_rmse: None,
+                mask_dice: None,
+                cut_pct: 0.0,
+            });
+        }
         if let Some(rm) = ref_ms {
             for row in rows
                 .iter_mut()
-                .filter(|x| x.scene == sc.name && x.config != "reference")
+                .filter(|x| x.scene == sc.name && x.config != "reference" && !is_per_change(x))
             {
                 row.speedup_vs_reference = Some(rm / row.frame_ms);
             }
@@ -293,7 +323,7 @@ pub fn chart(rows: &[Row]) -> image::RgbImage {
     };
     let configs: Vec<String> = rows
         .iter()
-        .filter(|r| r.config != "reference")
+        .filter(|r| r.config != "reference" && !is_per_change(r))
         .map(|r| r.config.clone())
         .fold(Vec::new(), |mut v, c| {
             if !v.contains(&c) {

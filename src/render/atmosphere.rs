@@ -152,6 +152,11 @@ impl AtmospherePass {
         }
     }
 
+    /// Forget what the sky-view table was made for: the next update makes it again.
+    pub fn invalidate(&mut self) {
+        self.last = None;
+    }
+
     /// The sky-view table, for the scene's group.
     pub fn sky_view(&self) -> &wgpu::Texture {
         &self.sky

@@ -654,6 +654,55 @@ impl Renderer {
         Ok(bytemuck::pod_read_unaligned(&bytes))
     }
 
+    /// Wall time (ms) of the per-change work for a view, each made again alone after a frame:
+    /// the sky-view table, then the full-column light volume (they are not per frame: `bench`).
+    pub fn time_per_change(
+        &mut self,
+        view: &View,
+        width: u32,
+        height: u32,
+        settings: &Settings,
+    ) -> Result<(f64, f64), RenderError> {
+        self.render(view, width, height, settings)?;
+        let sky = self.sky(view, settings)?;
+        let u = frame::build(&frame::FrameInput {
+            view: *view,
+            width,
+            height,
+            target_width: width,
+            sky,
+            region: &self.meta.region,
+            weather: &self.weather,
+            settings,
+        })?;
+        let timed = |r: &mut Renderer, which: u8| -> Result<f64, RenderError> {
+            let start = Instant::now();
+            let mut enc = r.gpu.device.create_command_encoder(&Default::default());
+            if which == 0 {
+                r.atmosphere.invalidate();
+                r.atmosphere.update(&mut enc, &u);
+            } else {
+                r.shadow.invalidate();
+                let light = (settings.march.column_light, settings.march.terrain);
+                r.shadow.update(
+                    &r.gpu,
+                    &mut enc,
+                    &r.march,
+                    &r.map_bind,
+                    &u,
+                    light,
+                    r.map_generation,
+                );
+            }
+            r.gpu.queue.submit([enc.finish()]);
+            r.gpu.wait()?;
+            Ok(start.elapsed().as_secs_f64() * 1e3)
+        };
+        let sky_ms = timed(self, 0)?;
+        let volume_ms = timed(self, 1)?;
+        Ok((sky_ms, volume_ms))
+    }
+
     /// How many times the full-column light volume and the sky-view table have been made
     /// (they are per change of the Sun or the map, not per frame).
     pub fn light_builds(&self) -> (u32, u32) {

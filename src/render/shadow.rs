@@ -358,6 +358,11 @@ impl ShadowPass {
         self.last = None;
     }
 
+    /// Forget what the volume was made for: the next update makes it again.
+    pub fn invalidate(&mut self) {
+        self.last = None;
+    }
+
     pub fn scene_bind(&self) -> &wgpu::BindGroup {
         &self.scene_bind
     }
@@ -415,7 +420,7 @@ impl ShadowPass {
         if params.enabled == 0 {
             return false;
         }
-        let (w, h, d) = self.size;
+        let (w, h, _) = self.size;
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("shadow"),
             timestamp_writes: None,
@@ -424,7 +429,7 @@ impl ShadowPass {
         pass.set_bind_group(0, march.device_bind(), &[]);
         pass.set_bind_group(1, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, &self.own_bind, &[]);
-        pass.dispatch_workgroups(w.div_ceil(4), h.div_ceil(4), d.div_ceil(4));
+        pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         self.builds += 1;
         true
     }
