@@ -56,9 +56,14 @@ noon=2011-01-15T13:40:00Z   # local noon near 25°W: the Sun 17° up at 52.5°N
 shot overcast-below natl $noon --camera 52.5,-25,50 --heading 180 --pitch 25
 shot overcast-above natl $noon --camera 52.0,-25.5,12000 --heading 30 --pitch -25
 # 3: dusk at 44N 3.5W looking east, the Sun just below the horizon behind the camera.
-shot dusk-east natl 2011-01-15T17:00:00Z --camera 44,-3.5,50 --heading 90 --pitch 4
+NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
+  shot dusk-east natl 2011-01-15T17:00:00Z --camera 44,-3.5,ground+2 --heading 90 --pitch 4
 # 4: night, the waxing gibbous Moon 68° up in the south-south-east.
-shot night-moon natl 2011-01-15T20:00:00Z --camera 44,-3.5,50 --heading 156 --pitch 40
+NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
+  shot night-moon natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 156 --pitch 40
+# 4b: the Moon itself through a 2° field of view: its phase (10.8 days old, 85 % lit).
+NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
+  shot moon-phase natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 156 --pitch 67.9 --fov 2
 # 5: the 400 hPa cloud over Tibet from 1.5 km above the plateau's southern rim, looking north.
 NEWCAM=30.5,84,ground+1500 OLDCAM=30.5,84,6500 \
   shot tibet ea400 2011-01-15T06:00:00Z --camera 30.5,84,ground+1500 --heading 0 --pitch 8

@@ -316,7 +316,7 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         // Aerial haze (Koschmieder) toward the opacity-weighted cloud distance.
         let dist = depth_w / alpha;
         let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
-        let haze = sky_seen(r.d);
+        let haze = sky_seen(r.d) * haze_light();
         col = col * fog + haze * alpha * (1.0 - fog);
     }
     return vec4<f32>(col, alpha);

@@ -182,6 +182,15 @@ fn sky_seen(v: vec3<f32>) -> vec3<f32> {
     return day + night_sky(f, v, f.cam_up);
 }
 
+// How much of the clear sky's light the haze around the camera gets: the key light and the sky
+// through the cloud column above the camera (under an overcast the haze is grey and dim).
+fn haze_light() -> f32 {
+    let o = f.cam_up * (EARTH_R + f.cam_alt_m);
+    let od = column_od(o, f.cam_alt_m);
+    let key = select(f.moon_dir, f.sun_dir, f.sun_is_key != 0u);
+    return key_through(od.x, max(dot(key, f.cam_up), 0.0));
+}
+
 // The Moon's disc lit by the Sun: its phase is the lit part of a sphere whose visible face
 // looks back at the camera.
 fn moon_disc(v: vec3<f32>) -> vec3<f32> {
@@ -223,7 +232,7 @@ fn background(v: vec3<f32>) -> vec3<f32> {
         let n = terrain_normal(p);
         let lit = g.yzw * ground_irradiance(p, n, g.x);
         let fog = haze_transmittance(f, h, g.x, t);
-        return lit * fog + sky_seen(v) * (1.0 - fog);
+        return lit * fog + sky_seen(v) * haze_light() * (1.0 - fog);
     }
     var c = sky_seen(v);
     let above = smoothstep(-0.01, 0.01, mu);

@@ -149,9 +149,13 @@ pub fn auto_exposure(sky: &Sky) -> f64 {
     let key = luminance(sky.sun.colour) * SUN_INTENSITY * 0.1
         + 0.15 * day
         + luminance(sky.moon.colour) * SUN_INTENSITY * 0.12;
+    let e = 0.6 / key.max(1e-9) * (0.2 + 0.8 * day);
     // Twilight's sky (the atmosphere's tables) is far brighter than this key counts: at most
-    // 2 stops over daylight, so dusk reads as dusk.
-    (0.6 / key.max(1e-9) * (0.2 + 0.8 * day)).min(4.0 * FIXED_EXPOSURE)
+    // 2 stops over daylight while the Sun is less than 8° down, so dusk reads as dusk; by
+    // astronomical night (12° down) the Moon's key alone.
+    let twilight = ((sky.sun_elevation_deg + 12.0) / 4.0).clamp(0.0, 1.0);
+    let cap = (4.0 * FIXED_EXPOSURE).ln() * twilight + e.ln() * (1.0 - twilight);
+    e.min(cap.exp())
 }
 
 /// The exposure `--exposure EV` fixes at EV 0: about what the Sun's-height exposure gives with

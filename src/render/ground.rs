@@ -44,7 +44,7 @@ pub fn texels(g: &Ground) -> (Vec<[half::f16; 4]>, u32, u32) {
             [g.height_m[i], c[0], c[1], c[2]].map(half::f16::from_f32)
         })
         .collect();
-    (t, g.grid.width as u32, g.grid.height as u32)
+    (t, g.grid.width, g.grid.height)
 }
 
 /// The texture for `g` (a 1×1 sea-level stand-in without one) and its uv transform
