@@ -61,9 +61,10 @@ NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
 # 4: night, the waxing gibbous Moon 68° up in the south-south-east.
 NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
   shot night-moon natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 156 --pitch 40
-# 4b: the Moon itself through a 2° field of view: its phase (10.8 days old, 85 % lit).
+# 4b: the Moon itself through a 2° field of view (10.8 days old, 85 % lit), at a fixed exposure
+# 6 stops over daylight's: the night's adapted exposure leaves the disc a white blot.
 NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
-  shot moon-phase natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 156 --pitch 67.9 --fov 2
+  shot moon-phase natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 155.6 --pitch 67.23 --fov 2 --exposure 6
 # 5: the 400 hPa cloud over Tibet from 1.5 km above the plateau's southern rim, looking north.
 NEWCAM=30.5,84,ground+1500 OLDCAM=30.5,84,6500 \
   shot tibet ea400 2011-01-15T06:00:00Z --camera 30.5,84,ground+1500 --heading 0 --pitch 8

@@ -142,15 +142,26 @@ fn hash2(p: vec2<f32>) -> f32 {
     return fract(sin(dot(p, vec2<f32>(127.1, 311.7))) * 43758.5453);
 }
 
-// Stars: a sparse fixed field in ECEF direction space, visible once the sky is dark enough.
+// Stars: a sparse fixed field in ECEF direction space, one in about 70 cells of 0.5°, about
+// 2 500 over the whole sky as for the naked eye. Magnitudes 0.5–6.5 with the counts growing
+// 10^(0.5 m) as real ones do; a star's light is its illuminance (magnitude 0 is 2e-11 of the
+// Sun's, SUN_I) spread over a small disc about a pixel wide at 60° field of view, so against a
+// moonlit sky only the brightest show and on a moonless night many do.
+const STAR_R: f32 = 0.002;
 fn stars(v: vec3<f32>) -> vec3<f32> {
     let ll = lat_lon(v);
-    let cell = floor(vec2<f32>(ll.x * 2.0, ll.y * 2.0 * cos(radians(ll.x))));
+    let c = vec2<f32>(ll.x * 2.0, ll.y * 2.0 * cos(radians(ll.x)));
+    let cell = floor(c);
     let h = hash2(cell);
-    if (h > 0.985) {
-        return vec3<f32>(1.0, 0.95, 0.9) * (h - 0.985) * 2e-7;
+    if (h <= 0.985) {
+        return vec3<f32>(0.0);
     }
-    return vec3<f32>(0.0);
+    let at = vec2<f32>(hash2(cell + 17.0), hash2(cell + 31.0)) * 0.6 + 0.2;
+    let d = radians(0.5 * length(c - cell - at));
+    let m = 6.5 + 2.0 * log2(max((h - 0.985) / 0.015, 1e-3)) * 0.30103;
+    let e = SUN_I * 2e-11 * exp2(-1.3287712 * m);
+    let w = 1.0 - smoothstep(0.6 * STAR_R, 1.2 * STAR_R, d);
+    return vec3<f32>(1.0, 0.95, 0.9) * e / (3.14159265 * STAR_R * STAR_R) * w;
 }
 
 // Ordered so a narrow sliver of each disc does not alias: a soft edge over 10 % of the radius.
