@@ -57,6 +57,10 @@ impl std::str::FromStr for Rate {
     }
 }
 
+/// Most wall seconds one frame runs time on by: a stall (start-up, a window drag) must not jump
+/// the weather by hours at ×600. A CPU adapter's frames (≈ 0.2–0.7 s) stay under it.
+pub const MAX_STEP_S: f64 = 1.0;
+
 /// Hours from `base` to `t`.
 fn hours(base: DateTime<Utc>, t: DateTime<Utc>) -> f64 {
     (t - base).num_milliseconds() as f64 / 3.6e6
@@ -86,13 +90,14 @@ impl Controls {
         self.time_label = label;
     }
 
-    /// Run time on by `dt_s` wall seconds at the chosen rate; at the slider's end it stops.
+    /// Run time on by `dt_s` wall seconds at the chosen rate, at most [`MAX_STEP_S`] a frame;
+    /// at the slider's end it stops.
     pub fn advance_time(&mut self, dt_s: f64) {
         if self.time_rate == Rate::Paused {
             return;
         }
         let (_, hi) = self.time_range_h;
-        self.time_offset_h += dt_s * self.time_rate.factor() / 3600.0;
+        self.time_offset_h += dt_s.clamp(0.0, MAX_STEP_S) * self.time_rate.factor() / 3600.0;
         if self.time_offset_h >= hi {
             self.time_offset_h = hi;
             self.time_rate = Rate::Paused;
@@ -148,9 +153,15 @@ mod tests {
         c.set_time(at(0), Some(at(3)), Some((at(0), at(6))));
         assert_eq!((c.time_offset_h, c.time_range_h), (3.0, (0.0, 6.0)));
         c.time_rate = Rate::X600;
-        c.advance_time(6.0); // one simulated hour
+        for _ in 0..6 {
+            c.advance_time(1.0); // ten simulated minutes each: one hour
+        }
         assert!((c.time_offset_h - 4.0).abs() < 1e-9);
-        c.advance_time(60.0);
+        c.advance_time(60.0); // a stall: at most MAX_STEP_S
+        assert!((c.time_offset_h - 4.0 - 600.0 * MAX_STEP_S / 3600.0).abs() < 1e-9);
+        for _ in 0..100 {
+            c.advance_time(1.0);
+        }
         assert_eq!((c.time_offset_h, c.time_rate), (6.0, Rate::Paused));
         // A plain map: a day either side, widened to take a far --time.
         c.set_time(at(0), Some(at(30)), None);
