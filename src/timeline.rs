@@ -15,7 +15,8 @@ use std::thread::JoinHandle;
 use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::Result;
-use stratus_ingest::series::Series;
+use stratus_ingest::series::meta::show_hour;
+use stratus_ingest::series::{is_series, Series};
 use stratus_ingest::structure::sample_to_wind;
 
 use crate::render::{RenderError, Renderer};
@@ -70,6 +71,38 @@ fn load_step(series: &Series, k: usize) -> Result<CloudMap> {
     Ok(m)
 }
 
+/// What a command draws from `--map` at `time`: the map to start the renderer from (and to read
+/// the camera's ground, the layers and, without a time, the valid time from) and, for a series,
+/// the timeline that blends its steps on the GPU ([`Timeline::prepare`]). A plain map is loaded
+/// as it is; a series gives the step nearer the moment (the first without one), whose structure
+/// and ground the blend takes there. No CPU blend: that is [`Series::at`], the reference.
+pub fn open_scene(
+    path: &Path,
+    time: Option<DateTime<Utc>>,
+) -> Result<(CloudMap, Option<Timeline>)> {
+    if !is_series(path) {
+        return Ok((CloudMap::load(path)?, None));
+    }
+    let tl = Timeline::open(path)?;
+    let k = match time {
+        Some(t) => {
+            let (first, last) = tl.span();
+            if t < first || t > last {
+                tracing::warn!(
+                    "{} is outside the series ({} to {}): the nearest step is held",
+                    stratus_ingest::meta::format_time(&t),
+                    stratus_ingest::meta::format_time(&first),
+                    stratus_ingest::meta::format_time(&last)
+                );
+            }
+            tl.nearer_step(t)
+        }
+        None => 0,
+    };
+    let map = load_step(&tl.series, k)?;
+    Ok((map, Some(tl)))
+}
+
 impl Timeline {
     /// Open the series sidecar `path`; each step's map is read once for its mean winds.
     pub fn open(path: &Path) -> Result<Timeline> {
@@ -105,6 +138,35 @@ impl Timeline {
             .position(|x| x.valid_time > time)
             .unwrap_or(s.len());
         Some(after.saturating_sub(1).min(s.len() - 2))
+    }
+
+    /// The step nearer `time` (the earlier one before mid-interval, as the blend takes the
+    /// genus), clamped to the series' ends.
+    pub fn nearer_step(&self, time: DateTime<Utc>) -> usize {
+        let Some(k) = self.interval(time) else {
+            return 0;
+        };
+        let s = self.series.steps();
+        let (t0, t1) = (s[k].valid_time, s[k + 1].valid_time);
+        if time - t0 < (t1 - t0) / 2 {
+            k
+        } else {
+            k + 1
+        }
+    }
+
+    /// The steps around `time` as the window's HUD shows them: `+0 h → +6 h` (`+0 h` for a
+    /// series of one step).
+    pub fn steps_text(&self, time: DateTime<Utc>) -> String {
+        let s = self.series.steps();
+        match self.interval(time) {
+            Some(k) => format!(
+                "{} → {}",
+                show_hour(s[k].forecast_hour),
+                show_hour(s[k + 1].forecast_hour)
+            ),
+            None => show_hour(s[0].forecast_hour),
+        }
     }
 
     /// How far each layer's noise has drifted with its mean wind from the first step to `time`

@@ -2,6 +2,8 @@
 //! must show clouds and the control panel. An empty map from the same start is the control: the
 //! clouds are what differs. Also: no display at all is a clear error, not a panic.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -218,6 +220,86 @@ fn window_shows_clouds_and_the_panel() {
     let sd = (view.iter().map(|c| (luma(*c) - m).powi(2)).sum::<f32>() / view.len() as f32).sqrt();
     assert!(sd > 0.03, "view luma spread {sd:.4}: a blank frame");
     assert!(view.iter().flatten().all(|c| c.is_finite()));
+}
+
+/// The `HH:MM` after "valid YYYY-MM-DD " in the window's summary line, as minutes of the day.
+fn valid_minutes(line: &str) -> Option<u32> {
+    let at = line.find("valid 2015-09-12 ")? + "valid 2015-09-12 ".len();
+    let hm = line.get(at..at + 5)?;
+    let (h, m) = hm.split_once(':')?;
+    Some(h.parse::<u32>().ok()? * 60 + m.parse::<u32>().ok()?)
+}
+
+/// The real +0/+6 h series in the window: the HUD's weather line (also printed in the
+/// `--frames` summary) gives the moment and the steps around it; `--time` starts there and
+/// `--time-rate 600` runs it on (at most MAX_STEP_S = 1 s of wall time a frame, so 4 frames
+/// are at most 40 simulated minutes).
+#[test]
+fn window_flies_a_series_with_time_running() {
+    let f0 = common::shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = common::shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    if !(f0.is_file() && f6.is_file()) {
+        eprintln!("skipped: ../shared/data/gfs-series not found");
+        return;
+    }
+    let x = Xvfb::start();
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("na.png");
+    let o = common::stratus(&[
+        "ingest",
+        f0.to_str().unwrap(),
+        f6.to_str().unwrap(),
+        "--region",
+        "30,70,-60,40",
+        "--size",
+        "256x128",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let series = dir.path().join("na.json");
+    let shot = dir.path().join("shot.png");
+    let run = |extra: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_stratus"))
+            .args([
+                "fly",
+                series.to_str().unwrap(),
+                "--window",
+                "640x360",
+                "--frames",
+                "4",
+                "--screenshot",
+                shot.to_str().unwrap(),
+            ])
+            .args(extra)
+            .env("RUST_LOG", "error")
+            .env_remove("WAYLAND_DISPLAY")
+            .env("DISPLAY", &x.display)
+            .output()
+            .expect("run stratus fly");
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(o.status.success(), "stratus fly failed: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let held = run(&["--time", "2015-09-12T23:00:00Z"]);
+    eprintln!("{held}");
+    assert!(
+        held.contains("valid 2015-09-12 23:00 UTC · step +0 h → +6 h"),
+        "{held}"
+    );
+    let running = run(&["--time", "2015-09-12T20:00:00Z", "--time-rate", "600"]);
+    eprintln!("{running}");
+    assert!(running.contains("step +0 h → +6 h · ×600"), "{running}");
+    let m = valid_minutes(&running).expect("a valid time in the summary");
+    assert!(
+        m > 20 * 60 && m <= 20 * 60 + 40,
+        "time ran to {:02}:{:02}, not within 40 min after 20:00",
+        m / 60,
+        m % 60
+    );
+    let s = Shot::load(&shot);
+    assert_eq!((s.w, s.h), (640, 360));
 }
 
 #[test]

@@ -17,7 +17,7 @@ use chrono::{DateTime, Duration, Utc};
 use common::{shared, stratus};
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
 use stratus::score::{compare, mask};
-use stratus::timeline::Timeline;
+use stratus::timeline::{open_scene, Timeline};
 use stratus_ingest::series::{blend, Series};
 
 /// Ingest the two real steps into `dir/na.json` (None where ../shared is absent).
@@ -117,6 +117,71 @@ fn the_gpu_blend_matches_the_cpu_blend_half_way() {
             "{name}: the blend ({d:.4}) is no closer than holding ({d_held:.4})"
         );
     }
+}
+
+/// `stratus render --time` on a series blends on the GPU (the timeline, as `flight`), not on the
+/// CPU: its top-down picture is the GPU path's, and that agrees with the CPU blend's.
+#[test]
+fn render_time_half_way_blends_on_the_gpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(path) = real_series(dir.path(), "512x256") else {
+        return;
+    };
+    let series = Series::load(&path).unwrap();
+    let t = series.steps()[0].valid_time + Duration::hours(3);
+    let iso = t.format("%Y-%m-%dT%H:%M:%SZ").to_string();
+    let shot = dir.path().join("render-time.png");
+    let (w, h) = (512, 256);
+    let t0 = std::time::Instant::now();
+    let o = stratus(&[
+        "render",
+        "--map",
+        path.to_str().unwrap(),
+        "--time",
+        &iso,
+        "--top-down",
+        "--size",
+        &format!("{w}x{h}"),
+        "--out",
+        shot.to_str().unwrap(),
+    ]);
+    let cli_s = t0.elapsed().as_secs_f64();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    // What the command does, in the library: the step nearer +3 h, the pair on the GPU.
+    let (start, tl) = open_scene(&path, Some(t)).unwrap();
+    let mut tl = tl.expect("a series");
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &start);
+    let mut s = settings(t);
+    s.drift_m = tl.prepare(&mut r, t).unwrap();
+    let gpu = r.render(&View::TopDown, w, h, &s).unwrap();
+    let t1 = std::time::Instant::now();
+    let cpu_map = series.at(t).unwrap();
+    let cpu_blend_s = t1.elapsed().as_secs_f64();
+    // The same settings, drifted noise included: the drift is the moment's, not the blend's.
+    r.set_map(&cpu_map);
+    let cpu = r.render(&View::TopDown, w, h, &s).unwrap();
+
+    // The command's picture is the GPU path's (pixel for pixel, up to rounding).
+    let png = image::open(&shot).unwrap().to_rgba8();
+    let same = gpu.to_image();
+    let diff = png
+        .as_raw()
+        .iter()
+        .zip(same.as_raw())
+        .map(|(a, b)| f64::from(a.abs_diff(*b)))
+        .sum::<f64>()
+        / png.as_raw().len() as f64;
+    let d = dsc(&gpu.alpha(), &cpu.alpha());
+    println!(
+        "render --time +3 h: command {cli_s:.1} s (the CPU blend alone takes {cpu_blend_s:.1} s); \
+         command vs GPU path mean |Δ| {diff:.3}/255; GPU vs CPU blend, top-down DSC {d:.4}"
+    );
+    assert!(
+        diff < 0.5,
+        "render --time is not the GPU blend: mean |Δ| {diff:.3}/255"
+    );
+    assert!(d >= 0.95, "GPU blend vs CPU blend DSC {d:.4} < 0.95");
 }
 
 /// Per-frame change of opacity: (max over pixels, mean).

@@ -39,8 +39,10 @@ impl App {
         if !r.controls.paused && frames_wanted.is_none() && following.is_none() {
             r.pilot.step(&r.input.keys, dt);
         }
-        let ui = r.build_ui(following.as_ref().map(Status::line));
+        r.controls.advance_time(dt);
+        let mut ui = r.build_ui(following.as_ref().map(Status::line));
         r.act(&ui.actions, &mut self.opts);
+        r.weather_at(&mut ui.settings);
         pilot::keep_above_ground(&mut r.pilot, &self.opts.map);
         let (tw, th) = (r.screen.config.width, r.screen.config.height);
         if tw == 0 || th == 0 {
@@ -103,6 +105,7 @@ impl Running {
             adapter: self.renderer.gpu.info.name.clone(),
             march_size: self.march_size,
             follow,
+            weather: self.weather_line(shown.time),
         };
         let input = self.ui.state.take_egui_input(&self.screen.window);
         let mut actions = Actions::default();

@@ -7,6 +7,7 @@
 //! under Xvfb).
 
 mod frame;
+pub mod moment;
 pub mod panel;
 pub mod pilot;
 pub mod start;
@@ -51,6 +52,12 @@ pub struct FlyOptions {
     pub ingest_dropped: IngestDropped,
     /// `--follow`: the camera takes a simulator's pose instead of the keyboard pilot's.
     pub follow: Option<crate::follow::Follower>,
+    /// `--time`: the moment the window starts at (default: the map's valid time).
+    pub time: Option<DateTime<Utc>>,
+    /// `--time-rate`: how fast time runs from the start.
+    pub time_rate: moment::Rate,
+    /// A series: the window flies through its steps (the time slider spans them).
+    pub timeline: Option<crate::timeline::Timeline>,
 }
 
 /// The window's surface and how it is configured.
@@ -136,7 +143,10 @@ struct Running {
     renderer: Renderer,
     pilot: Pilot,
     controls: Controls,
+    /// What the time slider counts from (a series' first step).
     valid_time: DateTime<Utc>,
+    /// A series: the two steps around the moment are kept on the GPU (moment.rs).
+    timeline: Option<crate::timeline::Timeline>,
     input: Input,
     clock: Clock,
     /// The march size of the last frame.
@@ -234,10 +244,13 @@ impl App {
         let ui_renderer =
             egui_wgpu::Renderer::new(&gpu.device, screen.config.format, Default::default());
         let renderer = Renderer::new(gpu, &self.opts.map);
-        let valid = valid_time(&self.opts.map);
+        let timeline = self.opts.timeline.take();
+        let valid = moment::slider_base(valid_time(&self.opts.map), timeline.as_ref());
         let rh_cr = LayerKind::ALL.map(LayerKind::default_rh_cr);
         let mut controls = Controls::new(self.opts.preset, rh_cr, self.opts.plan.is_some(), cpu);
         controls.set_map(&self.opts.map);
+        controls.set_time(valid, self.opts.time, timeline.as_ref().map(|t| t.span()));
+        controls.time_rate = self.opts.time_rate;
         if cpu {
             controls.status = "CPU adapter: marching at ¼ resolution".into();
         }
@@ -250,9 +263,10 @@ impl App {
                 renderer: ui_renderer,
             },
             renderer,
-            pilot: start_pilot(&self.opts.map, valid),
+            pilot: start_pilot(&self.opts.map, self.opts.time.unwrap_or(valid)),
             controls,
             valid_time: valid,
+            timeline,
             input: Input::default(),
             clock: Clock::new(),
             march_size: (0, 0),
@@ -271,6 +285,9 @@ impl App {
             Ok((map, plan)) => {
                 r.renderer.set_map(&map);
                 r.valid_time = valid_time(&map);
+                // A plain map now: the slider goes back to a day either side.
+                r.timeline = None;
+                r.controls.set_time(r.valid_time, None, None);
                 r.controls.rh_cr_editable = true;
                 r.controls.set_map(&map);
                 r.controls.status = format!("loaded {}", path.display());
@@ -402,8 +419,12 @@ fn summary(r: &Running) -> String {
     } else {
         format!("GPU {:.1} ms", mean(&c.gpu_log))
     };
+    let now = r.controls.settings(r.valid_time, c.frames).time;
+    let weather = r
+        .weather_line(now)
+        .map_or(String::new(), |w| format!("; {w}"));
     format!(
-        "{} frames in a {}x{} window (march {}x{}, {}): mean frame {:.1} ms over the last {}, {gpu}",
+        "{} frames in a {}x{} window (march {}x{}, {}): mean frame {:.1} ms over the last {}, {gpu}{weather}",
         c.frames,
         r.screen.config.width,
         r.screen.config.height,

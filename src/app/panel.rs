@@ -2,13 +2,19 @@
 
 use chrono::{DateTime, Duration, Utc};
 
+use super::moment::Rate;
 use crate::render::{Preset, Settings};
 
 /// What the panel edits, kept between frames.
 pub struct Controls {
     pub preset: Preset,
-    /// Hours added to the forecast's valid time.
+    /// Hours added to the forecast's valid time (a series' first step).
     pub time_offset_h: f64,
+    /// The time slider's ends (hours, as `time_offset_h`) and its label (super::moment).
+    pub time_range_h: (f64, f64),
+    pub time_label: &'static str,
+    /// How fast time runs.
+    pub time_rate: Rate,
     pub layers_on: [bool; 3],
     /// Which layers the map has (only those get a checkbox and an rh_cr slider).
     pub present: [bool; 3],
@@ -53,6 +59,8 @@ pub struct Hud {
     pub march_size: (u32, u32),
     /// `--follow`'s status line.
     pub follow: Option<String>,
+    /// A series: the valid time and the steps around it.
+    pub weather: Option<String>,
 }
 
 impl Controls {
@@ -71,6 +79,9 @@ impl Controls {
         Controls {
             preset,
             time_offset_h: 0.0,
+            time_range_h: (-24.0, 24.0),
+            time_label: "time (h from valid)",
+            time_rate: Rate::Paused,
             layers_on: d.layers_on,
             present: [true; 3],
             rh_cr,
@@ -149,6 +160,9 @@ pub fn hud(ui: &mut egui::Ui, h: &Hud) {
                     h.utc.format("%Y-%m-%d %H:%M"),
                     solar_time(h.utc, h.lon)
                 ));
+                if let Some(w) = &h.weather {
+                    ui.monospace(w);
+                }
                 ui.monospace(format!(
                     "{:.1} fps  frame {:.0} ms  GPU {}",
                     h.fps,
@@ -177,9 +191,14 @@ pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
                     }
                 });
             ui.add(egui::Slider::new(&mut c.render_scale, 0.1..=1.0).text("render scale"));
-            ui.add(
-                egui::Slider::new(&mut c.time_offset_h, -24.0..=24.0).text("time (h from valid)"),
-            );
+            let (lo, hi) = c.time_range_h;
+            ui.add(egui::Slider::new(&mut c.time_offset_h, lo..=hi).text(c.time_label));
+            ui.horizontal(|ui| {
+                ui.label("time runs");
+                for r in Rate::ALL {
+                    ui.selectable_value(&mut c.time_rate, r, r.name());
+                }
+            });
             ui.separator();
             ui.label("layers");
             ui.horizontal(|ui| {

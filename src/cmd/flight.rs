@@ -118,7 +118,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     check_folder(&a.out, &inputs, n)?;
     check_space(&a.out, n, w, h)?;
-    let map = a.look.open_map(&a.map)?;
+    // A series: the GPU holds the two steps around each frame's time and blends them.
+    let (map, timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
     let settings = a.look.settings(&map, &a.map)?;
     if let Cameras::Follow(f) = &mut source {
         // Before anything is created: a simulator that never speaks leaves no trace.
@@ -126,7 +127,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
 
     let created = create_folder(&a.out)?;
-    let result = render_and_commit(&a, &mut source, n, (w, h), &map, &settings);
+    let result = render_and_commit(&a, &mut source, n, (w, h), (&map, timeline), &settings);
     if result.is_err() {
         // A folder this run created goes too (it is empty: the staging folder is gone).
         for d in created.iter().rev() {
@@ -268,7 +269,7 @@ fn render_and_commit(
     source: &mut Cameras,
     n: u64,
     (w, h): (u32, u32),
-    map: &CloudMap,
+    (map, mut timeline): (&CloudMap, Option<stratus::timeline::Timeline>),
     settings: &Settings,
 ) -> anyhow::Result<(usize, Mp4, Lifted)> {
     let staging = tempfile::Builder::new()
@@ -279,12 +280,6 @@ fn render_and_commit(
     let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
     sweep_stale_staging(&a.out, staging.path());
     let mut r = Renderer::new(a.look.gpu()?, map);
-    // A series: the GPU holds the two steps around each frame's time and blends them.
-    let mut timeline = if stratus_ingest::series::is_series(&a.map) {
-        Some(stratus::timeline::Timeline::open(&a.map)?)
-    } else {
-        None
-    };
     let pb = progress_bar(n, "frames");
     let mut lifted = Lifted::default();
     for i in 0..n {

@@ -5,12 +5,13 @@ use std::process::ExitCode;
 
 use stratus_ingest::region::parse_size;
 
+use stratus::app::moment::Rate;
 use stratus::app::{fly, FlyOptions};
 use stratus::follow::{Follower, Source};
 use stratus::render::Preset;
 
 use super::files::{check_out, map_files};
-use super::options::{progress_bar, IngestOpts};
+use super::options::{parse_time, progress_bar, IngestOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -33,6 +34,15 @@ pub struct Args {
     /// Follow a simulator's aircraft: xplane[:PORT] (UDP 49003) or flightgear[:PORT] (5505).
     #[arg(long)]
     pub follow: Option<String>,
+    /// UTC time the window starts at (ISO 8601, e.g. 2015-09-12T21:00:00Z): the Sun's, and with
+    /// a series the weather's moment (blended between the two steps around it); default: the
+    /// map's valid time (a series' first step).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// How fast time runs from the start: pause, 1, 60 or 600 (simulated seconds per second;
+    /// the panel changes it).
+    #[arg(long, default_value = "pause")]
+    pub time_rate: Rate,
     /// Where --frames saves its last frame (PNG).
     #[arg(long, requires = "frames")]
     pub screenshot: Option<PathBuf>,
@@ -60,14 +70,16 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(s) => Some(Follower::bind(s.parse::<Source>()?)?),
         None => None,
     };
-    let (map, plan) = if is_json(&a.input) {
-        (stratus_ingest::series::open_map(&a.input, None)?, None)
+    let time = a.time.as_deref().map(parse_time).transpose()?;
+    let (map, plan, timeline) = if is_json(&a.input) {
+        let (map, timeline) = stratus::timeline::open_scene(&a.input, time)?;
+        (map, None, timeline)
     } else {
         let plan = a.ingest.plan(&a.input)?;
         let pb = progress_bar(1, "ingest");
         let map = plan.build();
         pb.finish_and_clear();
-        (map, Some(plan))
+        (map, Some(plan), None)
     };
     let base = a.ingest.clone();
     let ingest_dropped = Box::new(move |p: &std::path::Path, region, size| {
@@ -84,6 +96,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         screenshot: a.screenshot,
         ingest_dropped,
         follow,
+        time,
+        time_rate: a.time_rate,
+        timeline,
     })?;
     Ok(ExitCode::SUCCESS)
 }

@@ -50,8 +50,9 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     check_out(&a.out, &map_files(&a.map))?;
-    let map = a.look.open_map(&a.map)?;
-    let settings = a.look.settings(&map, &a.map)?;
+    // A series is blended on the GPU (the two steps around --time), as `flight` does.
+    let (map, mut timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
+    let mut settings = a.look.settings(&map, &a.map)?;
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,
         (Some(c), false) => View::Perspective(parse_camera(c, a.heading, a.pitch, a.fov, &map)?),
@@ -59,6 +60,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let (w, h) = parse_size(&a.size)?;
     let mut r = Renderer::new(a.look.gpu()?, &map);
+    if let Some(tl) = &mut timeline {
+        settings.drift_m = tl.prepare(&mut r, settings.time)?;
+    }
     let mut out = r.render(&view, w, h, &settings)?;
     if a.repeat > 1 {
         let mut runs = Vec::new();
