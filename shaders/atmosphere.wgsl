@@ -3,7 +3,8 @@
 // `transmittance` (once per device) the air's transmittance from any altitude along any
 // zenith angle; `multiscatter` (once) the light scattered more than once, per altitude and Sun
 // zenith angle; `sky_view` (when the Sun or the camera's altitude moves) the sky's radiance
-// around the camera, per azimuth from the Sun and elevation. Earth's shadow comes out of the
+// around the camera, per azimuth from the Sun and elevation; `aerial` (with it) the same rays cut
+// at 32 distances, the aerial perspective of ground and cloud. Earth's shadow comes out of the
 // transmittance: a point of air the Earth hides from the Sun scatters none of its light.
 
 @group(0) @binding(0) var<uniform> f: Frame;
@@ -11,6 +12,8 @@
 @group(2) @binding(0) var trans_lut: texture_2d<f32>;
 @group(2) @binding(1) var ms_lut: texture_2d<f32>;
 @group(2) @binding(2) var lut_sampler: sampler;
+// The aerial-perspective table (the `aerial` entry only).
+@group(3) @binding(0) var ap_out: texture_storage_3d<rgba16float, write>;
 
 const ATMO_TOP_M: f32 = 100000.0;
 // Rayleigh and Mie scattering at sea level (1/m) and scale heights (m); ozone absorption.
@@ -196,28 +199,65 @@ fn sky_elev_from_v(v: f32, h: f32) -> f32 {
     return eh - x * x * (eh + 0.5 * PI);
 }
 
+// A ray of the sky-view and aerial-perspective tables: texel uv → direction and zenith cosine
+// at the camera, and where it leaves the air or meets the (sea-level) ground.
+struct SkyRay {
+    v: vec3<f32>,
+    mu: f32,
+    h: f32,
+    end: f32,
+};
+
+fn sky_ray(uv: vec2<f32>) -> SkyRay {
+    var r: SkyRay;
+    r.h = clamp(f.cam_alt_m, 0.0, ATMO_TOP_M - 1.0);
+    let frame = sky_frame(f);
+    let az = (uv.x - 0.5) * 2.0 * PI;
+    let el = sky_elev_from_v(uv.y, r.h);
+    r.v = normalize(f.cam_up * sin(el) + (frame[0] * cos(az) + frame[1] * sin(az)) * cos(el));
+    r.mu = sin(el);
+    r.end = to_top(r.h, r.mu);
+    if (hits_ground(r.h, r.mu)) {
+        r.end = shell_hits(r.h, r.mu, 0.0).x;
+    }
+    return r;
+}
+
+// The Sun's light scattered toward the camera by the air between t0 and t1 along r, per unit
+// transmittance at t0 (single scattering through the transmittance table plus Ψ_ms), and the
+// transmittance over the segment.
+struct Segment {
+    light: vec3<f32>,
+    tr: vec3<f32>,
+};
+
+fn air_segment(r: SkyRay, t0: f32, t1: f32) -> Segment {
+    var out: Segment;
+    let c = dot(r.v, f.sun_dir);
+    let pr = rayleigh_phase(c);
+    let pm = mie_phase(c);
+    let dt = t1 - t0;
+    let t = 0.5 * (t0 + t1);
+    let hs = altitude_at(r.h, r.mu, t);
+    let m = medium(hs);
+    let p = f.cam_up * (EARTH_R + r.h) + r.v * t;
+    let mus = dot(normalize(p), f.sun_dir);
+    let ts = air_transmittance(hs, mus);
+    let psi = textureSampleLevel(ms_lut, lut_sampler, ms_uv(hs, mus), 0.0).rgb;
+    let sc = m.scatter_r * (pr * ts + psi) + m.scatter_m * (pm * ts + psi);
+    out.tr = exp(-m.extinct * dt);
+    // ∫ over the segment of the transmittance: (1 − e^{-σΔt})/σ.
+    out.light = sc * (vec3<f32>(1.0) - out.tr) / max(m.extinct, vec3<f32>(1e-12));
+    return out;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn sky_view(@builtin(global_invocation_id) id: vec3<u32>) {
     let dims = textureDimensions(lut_out);
     if (any(id.xy >= dims)) {
         return;
     }
-    let uv = (vec2<f32>(id.xy) + 0.5) / vec2<f32>(dims);
-    let h = clamp(f.cam_alt_m, 0.0, ATMO_TOP_M - 1.0);
-    let up = f.cam_up;
-    let frame = sky_frame(f);
-    let az = (uv.x - 0.5) * 2.0 * PI;
-    let el = sky_elev_from_v(uv.y, h);
-    let v = normalize(up * sin(el) + (frame[0] * cos(az) + frame[1] * sin(az)) * cos(el));
-    let mu = sin(el);
-    var d = to_top(h, mu);
-    if (hits_ground(h, mu)) {
-        d = shell_hits(h, mu, 0.0).x;
-    }
-    let sun = f.sun_dir;
-    let c = dot(v, sun);
-    let pr = rayleigh_phase(c);
-    let pm = mie_phase(c);
+    let r = sky_ray((vec2<f32>(id.xy) + 0.5) / vec2<f32>(dims));
     let n = 32u;
     var tr = vec3<f32>(1.0);
     var l = vec3<f32>(0.0);
@@ -225,20 +265,38 @@ fn sky_view(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var i = 0u; i < n; i++) {
         // Quadratic spacing: short steps near the camera where the air is densest.
         let x1 = (f32(i) + 1.0) / f32(n);
-        let t1 = d * x1 * x1;
-        let dt = t1 - t0;
-        let t = 0.5 * (t0 + t1);
+        let t1 = r.end * x1 * x1;
+        let seg = air_segment(r, t0, t1);
+        l += tr * seg.light;
+        tr *= seg.tr;
         t0 = t1;
-        let hs = altitude_at(h, mu, t);
-        let m = medium(hs);
-        let p = up * (EARTH_R + h) + v * t;
-        let mus = dot(normalize(p), sun);
-        let ts = air_transmittance(hs, mus);
-        let psi = textureSampleLevel(ms_lut, lut_sampler, ms_uv(hs, mus), 0.0).rgb;
-        let s = m.scatter_r * (pr * ts + psi) + m.scatter_m * (pm * ts + psi);
-        let step_tr = exp(-m.extinct * dt);
-        l += tr * s * (vec3<f32>(1.0) - step_tr) / max(m.extinct, vec3<f32>(1e-12));
-        tr *= step_tr;
     }
     textureStore(lut_out, id.xy, vec4<f32>(l * SUN_I, 1.0));
+}
+
+// Slice k of the aerial-perspective table holds, along its texel's ray, the light the air
+// scatters toward the camera from 0 to AP_MAX_M·((k + 1)/n)² (rgb) and the mean of the
+// transmittance over that distance (a); two steps per slice, none past the ground or the top.
+@compute @workgroup_size(8, 8, 1)
+fn aerial(@builtin(global_invocation_id) id: vec3<u32>) {
+    let dims = textureDimensions(ap_out);
+    if (any(id.xy >= dims.xy)) {
+        return;
+    }
+    let r = sky_ray((vec2<f32>(id.xy) + 0.5) / vec2<f32>(dims.xy));
+    var tr = vec3<f32>(1.0);
+    var l = vec3<f32>(0.0);
+    var t0 = 0.0;
+    for (var k = 0u; k < dims.z; k++) {
+        let x = (f32(k) + 1.0) / f32(dims.z);
+        let t_end = min(AP_MAX_M * x * x, r.end);
+        let half = 0.5 * max(t_end - t0, 0.0);
+        for (var j = 0u; j < 2u; j++) {
+            let seg = air_segment(r, t0, t0 + half);
+            l += tr * seg.light;
+            tr *= seg.tr;
+            t0 += half;
+        }
+        textureStore(ap_out, vec3<u32>(id.xy, k), vec4<f32>(l * SUN_I, dot(tr, vec3<f32>(1.0 / 3.0))));
+    }
 }

@@ -7,6 +7,8 @@ const EARTH_R: f32 = 6371000.0;
 
 // Sun intensity in the sky model's units.
 const SUN_I: f32 = 20.0;
+// How far the aerial-perspective table reaches along a view ray (m): the horizon from 12 km.
+const AP_MAX_M: f32 = 400000.0;
 
 // The per-frame uniforms: `render::frame::FrameUniforms` on the Rust side, field for field
 // (render::contract's test compares names, offsets, sizes and types with naga).
@@ -81,7 +83,7 @@ struct ShadowParams {
     ground_top_m: f32,          // highest terrain in the map (m); the terrain march starts below it
     ground_on: u32,             // 0: no ground in the map (sea level, a plain albedo)
     terrain_on: u32,            // 0: the preset's terrain switch is off (sea-level sphere)
-    _pad: u32,
+    aerial_on: u32,             // 0: the preset's aerial-perspective switch is off (no clear air)
 };
 
 // The exposure stage's settings (render::exposure::ExposureParams) and result.
@@ -238,11 +240,12 @@ fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
     return normalize(f.cam_fwd + f.cam_right * (ndc.x * tn * f.aspect) + f.cam_view_up * (ndc.y * tn));
 }
 
-// Aerial haze transmittance over `dist` metres between altitudes h0 and h1: the visibility's
-// extinction (3.912 / V, Koschmieder) at sea level, thinning with a 1.5 km aerosol scale
-// height (taken at the mean altitude), plus clear-air Rayleigh extinction (~1/300 km at sea level).
+// Aerial haze transmittance over `dist` metres between altitudes h0 and h1: the haze's share of
+// the visibility's extinction (3.912 / V, Koschmieder, less the clear air's, frame.rs) at sea
+// level, thinning with a 1.5 km aerosol scale height (taken at the mean altitude). The clear
+// air's own extinction and light are the aerial-perspective table's (scene.wgsl `aerial`).
 fn haze_transmittance(f: Frame, h0: f32, h1: f32, dist: f32) -> f32 {
     let hm = max(0.5 * (h0 + h1), 0.0);
-    let beta = f.haze_beta * exp(-hm / 1500.0) + 3.3e-6 * exp(-hm / 8000.0);
+    let beta = f.haze_beta * exp(-hm / 1500.0);
     return exp(-beta * dist);
 }

@@ -269,7 +269,7 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
             od_up = column_od(pos, h).y;
             // Light the ground below sends back up, for the bases (its albedo, in its shadows).
             let gr = ground_at(uv);
-            bounce = gr.yzw * ground_irradiance(up * (EARTH_R + gr.x), up, gr.x);
+            bounce = gr.yzw * ground_irradiance(up * (EARTH_R + gr.x), up, gr.x, ambient);
         }
         // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
         // black, plus two octaves of Hillaire's multiple-scattering approximation
@@ -313,8 +313,11 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         return vec4<f32>(0.0);
     }
     if (!no_sky) {
-        // Aerial haze (Koschmieder) toward the opacity-weighted cloud distance.
+        // The clear air (the aerial-perspective table) and the haze (Koschmieder) toward the
+        // opacity-weighted cloud distance.
         let dist = depth_w / alpha;
+        let ap = aerial(r.d, dist);
+        col = col * ap.a + ap.rgb * alpha;
         let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
         let haze = sky_seen(r.d) * haze_light();
         col = col * fog + haze * alpha * (1.0 - fog);

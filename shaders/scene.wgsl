@@ -9,6 +9,8 @@
 @group(3) @binding(3) var sky_tex: texture_2d<f32>;
 // The map's ground (render::ground): terrain height (m) and surface albedo (RGB).
 @group(3) @binding(4) var ground_tex: texture_2d<f32>;
+// The clear air's light and transmittance along view rays (render::atmosphere's aerial table).
+@group(3) @binding(5) var ap_tex: texture_3d<f32>;
 
 // Asymmetry of cloud droplets' scattering, for the diffuse (two-stream) light (DESIGN §8).
 const G_CLOUD: f32 = 0.85;
@@ -126,7 +128,7 @@ fn terrain_normal(p: vec3<f32>) -> vec3<f32> {
 
 // Irradiance on level ground at p (unit up n, altitude hg) over π: the Sun or Moon through the
 // clouds' column, and the sky through the column above.
-fn ground_irradiance(p: vec3<f32>, n: vec3<f32>, hg: f32) -> vec3<f32> {
+fn ground_irradiance(p: vec3<f32>, n: vec3<f32>, hg: f32, sky: vec3<f32>) -> vec3<f32> {
     let od = column_od(p, hg);
     let sun_mu = max(dot(n, f.sun_dir), 0.0);
     let moon_mu = max(dot(n, f.moon_dir), 0.0);
@@ -135,7 +137,7 @@ fn ground_irradiance(p: vec3<f32>, n: vec3<f32>, hg: f32) -> vec3<f32> {
     let sun_t = select(other, key, f.sun_is_key != 0u);
     let moon_t = select(key, other, f.sun_is_key != 0u);
     let direct = f.sun_col * sun_mu * SUN_I * 0.25 * sun_t + f.moon_col * moon_mu * SUN_I * 0.25 * moon_t;
-    return direct + sky_radiance(f, n, n) * diffuse_t(od.y);
+    return direct + sky * diffuse_t(od.y);
 }
 
 fn hash2(p: vec2<f32>) -> f32 {
@@ -184,6 +186,36 @@ fn sky_view_uv(v: vec3<f32>) -> vec2<f32> {
     }
     let x = atan2(dot(v, fr[1]), dot(v, fr[0])) / (2.0 * PI) + 0.5;
     return vec2<f32>(x, y);
+}
+
+// The clear air between the camera and the point at distance d along v (the aerial-perspective
+// table, Hillaire 2020): the light it scatters toward the camera (rgb) and its mean
+// transmittance (a). Nearer than the first slice, a share of it.
+fn aerial(v: vec3<f32>, d: f32) -> vec4<f32> {
+    if (sh.aerial_on == 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
+    let n = f32(textureDimensions(ap_tex).z);
+    let s = sqrt(sat(d / AP_MAX_M)) * n;
+    let a = textureSampleLevel(ap_tex, od_sampler, vec3<f32>(sky_view_uv(v), (max(s, 1.0) - 0.5) / n), 0.0);
+    if (s < 1.0) {
+        return vec4<f32>(a.rgb * s, mix(1.0, a.a, s));
+    }
+    return a;
+}
+
+// The clear sky's light on level ground near the camera: the sky-view table's radiance
+// averaged over the hemisphere, cosine-weighted (the zenith and four directions 30° up), so
+// twilight's sky lights the ground as brightly as it is drawn.
+fn sky_ambient() -> vec3<f32> {
+    let up = f.cam_up;
+    let fr = sky_frame(f);
+    var l = sky_seen(up);
+    for (var k = 0u; k < 4u; k++) {
+        let a = f32(k) * 0.5 * PI + 0.25 * PI;
+        l += 0.5 * sky_seen(normalize(up * 0.5 + (fr[0] * cos(a) + fr[1] * sin(a)) * 0.8660254));
+    }
+    return l / 3.0;
 }
 
 // The sky seen from the camera along v: the atmosphere's table by day and twilight (Earth's
@@ -241,7 +273,8 @@ fn background(v: vec3<f32>) -> vec3<f32> {
         let p = o + v * t;
         let g = ground_at(region_uv(f, lat_lon(p)));
         let n = terrain_normal(p);
-        let lit = g.yzw * ground_irradiance(p, n, g.x);
+        let ap = aerial(v, t);
+        let lit = g.yzw * ground_irradiance(p, n, g.x, sky_ambient()) * ap.a + ap.rgb;
         let fog = haze_transmittance(f, h, g.x, t);
         return lit * fog + sky_seen(v) * haze_light() * (1.0 - fog);
     }

@@ -106,6 +106,9 @@ pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
     let mut p = b;
     p.terrain = false;
     v.push(("balanced − terrain".into(), p));
+    let mut p = b;
+    p.aerial = false;
+    v.push(("balanced − aerial perspective".into(), p));
     // The per-change work made every frame: the Sun moves 15 minutes a frame, so the light
     // volume and the sky-view table are made again each time (wall time: they are outside the
     // timed passes).

@@ -1,8 +1,8 @@
 //! Atmosphere stage: dispatches shaders/atmosphere.wgsl, the precomputed sky (Hillaire 2020;
 //! DESIGN §8). The transmittance and multiple-scattering tables are made once per device; the
-//! sky-view table around the camera when the Sun's elevation there or the camera's altitude
-//! moves. The present and march stages read the sky-view table (scene.wgsl) instead of
-//! evaluating a sky per pixel.
+//! sky-view and aerial-perspective tables around the camera when the Sun's elevation there or
+//! the camera's altitude moves. The present and march stages read them (scene.wgsl) instead of
+//! evaluating a sky, or the air in front of ground and cloud, per pixel.
 
 use super::contract::{self, Binding, Resource};
 use super::frame::FrameUniforms;
@@ -14,6 +14,8 @@ pub const LUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const TRANSMITTANCE_SIZE: (u32, u32) = (256, 64);
 pub const MULTISCATTER_SIZE: (u32, u32) = (32, 32);
 pub const SKY_VIEW_SIZE: (u32, u32) = (192, 108);
+/// Aerial perspective: azimuth × elevation (the sky-view table's mapping) × distance slices.
+pub const AERIAL_SIZE: (u32, u32, u32) = (64, 36, 32);
 /// The Sun's elevation may move this far (degrees) before the sky-view table is made again.
 pub const REBUILD_SUN_DEG: f64 = 0.1;
 /// The camera may climb or sink this far (m, or 2 % of its altitude) before it is made again.
@@ -42,12 +44,20 @@ pub const BINDINGS: &[Binding] = &[
         binding: 2,
         resource: Resource::Sampler,
     },
+    Binding {
+        group: 3,
+        binding: 0,
+        resource: Resource::StorageTexture(LUT_FORMAT, 3),
+    },
 ];
 
 pub struct AtmospherePass {
     transmittance: wgpu::ComputePipeline,
     multiscatter: wgpu::ComputePipeline,
     sky_view: wgpu::ComputePipeline,
+    aerial: wgpu::ComputePipeline,
+    aerial_out: wgpu::BindGroup,
+    aerial_table: wgpu::Texture,
     device_bind: wgpu::BindGroup,
     out_binds: [wgpu::BindGroup; 3],
     /// The tables the multiple-scattering pass reads (the transmittance and a stand-in for
@@ -75,10 +85,10 @@ impl AtmospherePass {
     pub fn new(gpu: &Gpu, uniforms: &wgpu::Buffer) -> AtmospherePass {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::COMPUTE;
-        let layouts = [0, 1, 2].map(|g| contract::layout(dev, "atmosphere", BINDINGS, g, stage));
+        let layouts = [0, 1, 2, 3].map(|g| contract::layout(dev, "atmosphere", BINDINGS, g, stage));
         let module = shader::module(dev, "atmosphere", shader::ATMOSPHERE);
         let pipeline = |entry: &str, groups: usize| {
-            let all = [Some(&layouts[0]), Some(&layouts[1]), Some(&layouts[2])];
+            let all = layouts.each_ref().map(Some);
             let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(entry),
                 bind_group_layouts: &all[..groups],
@@ -96,10 +106,26 @@ impl AtmospherePass {
         let transmittance = pipeline("transmittance", 2);
         let multiscatter = pipeline("multiscatter", 3);
         let sky_view = pipeline("sky_view", 3);
+        let aerial = pipeline("aerial", 4);
         let trans = table(dev, "transmittance table", TRANSMITTANCE_SIZE);
         let ms = table(dev, "multiple-scattering table", MULTISCATTER_SIZE);
         let sky = table(dev, "sky-view table", SKY_VIEW_SIZE);
         let stand_in = table(dev, "multiple-scattering stand-in", (1, 1));
+        let (aw, ah, ad) = AERIAL_SIZE;
+        let aerial_table = dev.create_texture(&wgpu::TextureDescriptor {
+            label: Some("aerial-perspective table"),
+            size: wgpu::Extent3d {
+                width: aw,
+                height: ah,
+                depth_or_array_layers: ad,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: LUT_FORMAT,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("atmosphere tables"),
@@ -123,6 +149,12 @@ impl AtmospherePass {
             )
         };
         let out_binds = [out(&trans), out(&ms), out(&sky)];
+        let aerial_out = bind(
+            dev,
+            "atmosphere: aerial out",
+            &layouts[3],
+            [R::TextureView(&view(&aerial_table))],
+        );
         let read = |second: &wgpu::Texture| {
             bind(
                 dev,
@@ -141,6 +173,9 @@ impl AtmospherePass {
             transmittance,
             multiscatter,
             sky_view,
+            aerial,
+            aerial_out,
+            aerial_table,
             device_bind,
             out_binds,
             read_for_ms,
@@ -160,6 +195,11 @@ impl AtmospherePass {
     /// The sky-view table, for the scene's group.
     pub fn sky_view(&self) -> &wgpu::Texture {
         &self.sky
+    }
+
+    /// The aerial-perspective table, for the scene's group.
+    pub fn aerial(&self) -> &wgpu::Texture {
+        &self.aerial_table
     }
 
     /// Make what this frame needs (its uniforms already written before `enc` runs): the fixed
@@ -198,6 +238,10 @@ impl AtmospherePass {
         pass.set_bind_group(1, &self.out_binds[2], &[]);
         pass.set_bind_group(2, &self.read_for_sky, &[]);
         let (x, y) = groups(SKY_VIEW_SIZE);
+        pass.dispatch_workgroups(x, y, 1);
+        pass.set_pipeline(&self.aerial);
+        pass.set_bind_group(3, &self.aerial_out, &[]);
+        let (x, y) = groups((AERIAL_SIZE.0, AERIAL_SIZE.1));
         pass.dispatch_workgroups(x, y, 1);
         self.last = Some(now);
         self.builds += 1;

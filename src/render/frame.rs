@@ -16,6 +16,9 @@ pub const SHAPE_PERIOD_M: f64 = 24_000.0;
 pub const DETAIL_PERIOD_M: f64 = 2_000.0;
 /// Sun intensity in the sky model's units (`SUN_I` in shaders/common.wgsl).
 pub const SUN_INTENSITY: f64 = 20.0;
+/// The clear air's extinction at sea level at 550 nm (1/m): atmosphere.wgsl's Rayleigh (green,
+/// 13.6e-6) and Mie (4.4e-6) coefficients. A visibility past 3.912/this (≈ 217 km) has no haze.
+pub const CLEAR_AIR_EXTINCTION: f64 = 13.558e-6 + 4.40e-6;
 
 crate::gpu_struct! {
     /// The per-frame uniforms: `struct Frame` in shaders/common.wgsl, field for field (the
@@ -331,7 +334,10 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         FIXED_EXPOSURE
     };
     u.exposure = (base * 2f64.powf(s.exposure_ev)) as f32;
-    u.haze_beta = (3.912 / visibility) as f32;
+    // Koschmieder: the visibility is the total extinction's; the clear air's share (the
+    // atmosphere's Rayleigh and background aerosol at 550 nm, drawn by the aerial-perspective
+    // table) is taken off, so what is left is the haze's.
+    u.haze_beta = (3.912 / visibility - CLEAR_AIR_EXTINCTION).max(0.0) as f32;
     u.haze_cutoff_m = (5.0 * visibility).min(2.0e6) as f32;
     u.region_south = r.south as f32;
     u.region_north = r.north as f32;

@@ -361,7 +361,10 @@ impl Renderer {
             &march,
             scene_layout,
             &map.meta.region,
-            atmosphere.sky_view().create_view(&Default::default()),
+            shadow::SkyViews {
+                sky_view: atmosphere.sky_view().create_view(&Default::default()),
+                aerial: atmosphere.aerial().create_view(&Default::default()),
+            },
         );
         shadow.set_ground(&gpu, map.ground());
         let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
@@ -534,7 +537,11 @@ impl Renderer {
             march,
             map_bind,
             &uniforms,
-            (settings.march.column_light, settings.march.terrain),
+            (
+                settings.march.column_light,
+                settings.march.terrain,
+                settings.march.aerial,
+            ),
             *map_generation,
         );
         enc.clear_buffer(&t.cut_mask, 0, None);
@@ -683,7 +690,11 @@ impl Renderer {
                 r.atmosphere.update(&mut enc, &u);
             } else {
                 r.shadow.invalidate();
-                let light = (settings.march.column_light, settings.march.terrain);
+                let light = (
+                    settings.march.column_light,
+                    settings.march.terrain,
+                    settings.march.aerial,
+                );
                 r.shadow.update(
                     &r.gpu,
                     &mut enc,

@@ -59,6 +59,7 @@ impl Preset {
                 detail: false,
                 column_light: true,
                 terrain: true,
+                aerial: true,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -72,6 +73,7 @@ impl Preset {
                 detail: true,
                 column_light: true,
                 terrain: true,
+                aerial: true,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -85,6 +87,7 @@ impl Preset {
                 detail: true,
                 column_light: true,
                 terrain: true,
+                aerial: true,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -98,6 +101,7 @@ impl Preset {
                 detail: true,
                 column_light: true,
                 terrain: true,
+                aerial: true,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -162,6 +166,9 @@ pub struct MarchParams {
     pub column_light: bool,
     /// The forecast's terrain marched as a height field (else the ground is a sea-level sphere).
     pub terrain: bool,
+    /// The clear air's light and extinction in front of ground and cloud (the atmosphere's
+    /// aerial-perspective table); else only the visibility's haze.
+    pub aerial: bool,
     pub shortcuts: Shortcuts,
 }
 

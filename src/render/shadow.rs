@@ -39,7 +39,8 @@ crate::gpu_struct! {
         pub ground_on: u32,
         /// 1 when the preset draws the terrain.
         pub terrain_on: u32,
-        pub _pad: u32,
+        /// 1 when the preset draws the clear air in front of ground and cloud.
+        pub aerial_on: u32,
     }
 }
 
@@ -81,7 +82,19 @@ pub const SCENE_BINDINGS: &[Binding] = &[
         binding: 4,
         resource: Resource::Texture2d { filterable: true },
     },
+    // The atmosphere's aerial-perspective table.
+    Binding {
+        group: SCENE_GROUP,
+        binding: 5,
+        resource: Resource::Texture3d,
+    },
 ];
+
+/// The atmosphere's tables the scene's group shows (render::atmosphere).
+pub struct SkyViews {
+    pub sky_view: wgpu::TextureView,
+    pub aerial: wgpu::TextureView,
+}
 
 /// shadow.wgsl's own bindings (groups 0 and 1 are the march's).
 pub const OWN_BINDINGS: &[Binding] = &[
@@ -188,7 +201,7 @@ pub struct ShadowPass {
     scene_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     params: wgpu::Buffer,
-    sky_view: wgpu::TextureView,
+    sky: SkyViews,
     ground: wgpu::TextureView,
     /// The ground's uv transform and highest terrain; `None` without a ground.
     ground_fit: Option<([f32; 4], f32)>,
@@ -207,7 +220,7 @@ impl ShadowPass {
         march: &MarchPass,
         scene_layout: wgpu::BindGroupLayout,
         region: &Region,
-        sky_view: wgpu::TextureView,
+        sky: SkyViews,
     ) -> ShadowPass {
         let dev = &gpu.device;
         let own_layout = contract::layout(
@@ -256,7 +269,7 @@ impl ShadowPass {
             size,
             &own_layout,
             &scene_layout,
-            (&sampler, &params, &sky_view, &ground),
+            (&sampler, &params, &sky, &ground),
         );
         ShadowPass {
             pipeline,
@@ -264,7 +277,7 @@ impl ShadowPass {
             scene_layout,
             sampler,
             params,
-            sky_view,
+            sky,
             ground,
             ground_fit: None,
             size,
@@ -281,10 +294,10 @@ impl ShadowPass {
         (w, h, d): (u32, u32, u32),
         own_layout: &wgpu::BindGroupLayout,
         scene_layout: &wgpu::BindGroupLayout,
-        (sampler, params, sky_view, ground): (
+        (sampler, params, sky, ground): (
             &wgpu::Sampler,
             &wgpu::Buffer,
-            &wgpu::TextureView,
+            &SkyViews,
             &wgpu::TextureView,
         ),
     ) -> (wgpu::Texture, wgpu::BindGroup, wgpu::BindGroup) {
@@ -322,8 +335,9 @@ impl ShadowPass {
                 R::TextureView(&view),
                 R::Sampler(sampler),
                 R::Buffer(params.as_entire_buffer_binding()),
-                R::TextureView(sky_view),
+                R::TextureView(&sky.sky_view),
                 R::TextureView(ground),
+                R::TextureView(&sky.aerial),
             ],
         );
         (volume, own, scene)
@@ -353,7 +367,7 @@ impl ShadowPass {
             self.size,
             &self.own_layout,
             &self.scene_layout,
-            (&self.sampler, &self.params, &self.sky_view, &self.ground),
+            (&self.sampler, &self.params, &self.sky, &self.ground),
         );
         self.last = None;
     }
@@ -384,7 +398,7 @@ impl ShadowPass {
         march: &MarchPass,
         map_bind: &wgpu::BindGroup,
         u: &FrameUniforms,
-        (enabled, terrain): (bool, bool),
+        (enabled, terrain, aerial): (bool, bool, bool),
         map_generation: u64,
     ) -> bool {
         let key_dir = if u.sun_is_key != 0 {
@@ -404,7 +418,7 @@ impl ShadowPass {
             ground_top_m: self.ground_fit.map_or(0.0, |g| g.1),
             ground_on: u32::from(self.ground_fit.is_some()),
             terrain_on: u32::from(terrain && self.ground_fit.is_some()),
-            _pad: 0,
+            aerial_on: u32::from(aerial),
         };
         // The ground's part can change without the volume (the preset's terrain switch).
         gpu.queue
