@@ -32,23 +32,10 @@ shot() {
     local old_args=("$@")
     [ -n "${OLDCAM:-}" ] && old_args=("${@/${NEWCAM:-}/$OLDCAM}")
     "$old" render "${args[@]}" "${old_args[@]}" --out "$tmp/before.png" 2> >(grep -v XDG_RUNTIME >&2)
-  elif [ -f "$out/$name.png" ]; then
-    python3 -c 'import sys; from PIL import Image; Image.open(sys.argv[1]).crop((0, 0, 960, 540)).save(sys.argv[2])' \
-      "$out/$name.png" "$tmp/before.png"
+    python3 scripts/side-by-side.py "$out/$name.png" "$tmp/after.png" "$tmp/before.png"
   else
-    echo "no $out/$name.png to take the left half from: set OLD_STRATUS" >&2
-    exit 1
+    python3 scripts/side-by-side.py "$out/$name.png" "$tmp/after.png"
   fi
-  python3 - "$tmp/before.png" "$tmp/after.png" "$out/$name.png" <<'PY'
-import sys
-from PIL import Image
-b, a = (Image.open(p).convert("RGB") for p in sys.argv[1:3])
-c = Image.new("RGB", (b.width + 8 + a.width, b.height), (255, 255, 255))
-c.paste(b, (0, 0))
-c.paste(a, (b.width + 8, 0))
-c.save(sys.argv[3], optimize=True)
-PY
-  echo "$out/$name.png"
 }
 
 noon=2011-01-15T13:40:00Z   # local noon near 25°W: the Sun 17° up at 52.5°N

@@ -33,23 +33,10 @@ shot() {
   "$STRATUS" render "${args[@]}" --out "$tmp/after.png" 2> >(grep -v XDG_RUNTIME >&2)
   if [ -n "$old" ]; then
     "$old" render "${args[@]}" --out "$tmp/before.png" 2> >(grep -v XDG_RUNTIME >&2)
-  elif [ -f "$out/$name.png" ]; then
-    python3 -c 'import sys; from PIL import Image; Image.open(sys.argv[1]).crop((0, 0, 960, 540)).save(sys.argv[2])' \
-      "$out/$name.png" "$tmp/before.png"
+    python3 scripts/side-by-side.py "$out/$name.png" "$tmp/after.png" "$tmp/before.png"
   else
-    echo "no $out/$name.png to take the left half from: set OLD_STRATUS" >&2
-    exit 1
+    python3 scripts/side-by-side.py "$out/$name.png" "$tmp/after.png"
   fi
-  python3 - "$tmp/before.png" "$tmp/after.png" "$out/$name.png" <<'PY'
-import sys
-from PIL import Image
-b, a = (Image.open(p).convert("RGB") for p in sys.argv[1:3])
-c = Image.new("RGB", (b.width + 8 + a.width, b.height), (255, 255, 255))
-c.paste(b, (0, 0))
-c.paste(a, (b.width + 8, 0))
-c.save(sys.argv[3], optimize=True)
-PY
-  echo "$out/$name.png"
 }
 
 # 1, 2: a stratocumulus overcast (46.5N 50W: low 1.0, 643-2432 m, nothing above), from 6 km

@@ -315,11 +315,13 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     if (!no_sky) {
         // The clear air (the aerial-perspective table) and the haze (Koschmieder) toward the
         // opacity-weighted cloud distance.
+        // The air's light is the table's for a clear sky: dimmed, as the haze's, under cloud.
         let dist = depth_w / alpha;
+        let air = haze_light();
         let ap = aerial(r.d, dist);
-        col = col * ap.a + ap.rgb * alpha;
+        col = col * ap.a + ap.rgb * air * alpha;
         let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
-        let haze = sky_seen(r.d) * haze_light();
+        let haze = sky_seen(r.d) * air;
         col = col * fog + haze * alpha * (1.0 - fog);
     }
     return vec4<f32>(col, alpha);

@@ -273,10 +273,12 @@ fn background(v: vec3<f32>) -> vec3<f32> {
         let p = o + v * t;
         let g = ground_at(region_uv(f, lat_lon(p)));
         let n = terrain_normal(p);
+        // The air's light (the table's, for a clear sky) and the haze's, both dimmed under cloud.
+        let air = haze_light();
         let ap = aerial(v, t);
-        let lit = g.yzw * ground_irradiance(p, n, g.x, sky_ambient()) * ap.a + ap.rgb;
+        let lit = g.yzw * ground_irradiance(p, n, g.x, sky_ambient()) * ap.a + ap.rgb * air;
         let fog = haze_transmittance(f, h, g.x, t);
-        return lit * fog + sky_seen(v) * haze_light() * (1.0 - fog);
+        return lit * fog + sky_seen(v) * air * (1.0 - fog);
     }
     var c = sky_seen(v);
     let above = smoothstep(-0.01, 0.01, mu);

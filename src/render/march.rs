@@ -192,6 +192,40 @@ impl MarchPass {
         [&self.layouts[0], &self.layouts[1]]
     }
 
+    /// A compute stage that evaluates the cloud as the march does: the march's device and map
+    /// groups, then its own bindings as group `GROUP_TARGET`; entry point `main`, with these
+    /// pipeline-overridable constants. Returns the pipeline and its own group's layout.
+    pub fn cloud_stage(
+        &self,
+        gpu: &Gpu,
+        label: &str,
+        (own, source): (&[Binding], &str),
+        constants: &[(&str, f64)],
+    ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+        let dev = &gpu.device;
+        let stage = wgpu::ShaderStages::COMPUTE;
+        let own_layout = contract::layout(dev, label, own, GROUP_TARGET, stage);
+        let [device_layout, map_layout] = self.shared_layouts();
+        let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(device_layout), Some(map_layout), Some(&own_layout)],
+            immediate_size: 0,
+        });
+        let module = shader::module(dev, label, source);
+        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                ..Default::default()
+            },
+            cache: None,
+        });
+        (pipeline, own_layout)
+    }
+
     pub fn device_bind(&self) -> &wgpu::BindGroup {
         &self.device_bind
     }

@@ -493,18 +493,8 @@ impl Renderer {
             return Err(RenderError::BadSize(target_width, height, self.max_side()));
         }
         settings.validate()?;
-        let sky = self.sky(view, settings)?;
         self.blend_at(settings);
-        let uniforms = frame::build(&frame::FrameInput {
-            view: *view,
-            width,
-            height,
-            target_width,
-            sky,
-            region: &self.meta.region,
-            weather: &self.weather,
-            settings,
-        })?;
+        let uniforms = self.uniforms(view, (width, height, target_width), settings)?;
         let pipeline = self.present.prepare(&self.gpu, target_format);
         self.targets(width, height);
         let Renderer {
@@ -593,18 +583,8 @@ impl Renderer {
             )));
         }
         settings.validate()?;
-        let sky = self.sky(&View::TopDown, settings)?;
         self.blend_at(settings);
-        let uniforms = frame::build(&frame::FrameInput {
-            view: View::TopDown,
-            width,
-            height,
-            target_width: width,
-            sky,
-            region: &self.meta.region,
-            weather: &self.weather,
-            settings,
-        })?;
+        let uniforms = self.uniforms(&View::TopDown, (width, height, width), settings)?;
         let scope = self
             .gpu
             .device
@@ -671,17 +651,7 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<(f64, f64), RenderError> {
         self.render(view, width, height, settings)?;
-        let sky = self.sky(view, settings)?;
-        let u = frame::build(&frame::FrameInput {
-            view: *view,
-            width,
-            height,
-            target_width: width,
-            sky,
-            region: &self.meta.region,
-            weather: &self.weather,
-            settings,
-        })?;
+        let u = self.uniforms(view, (width, height, width), settings)?;
         let timed = |r: &mut Renderer, which: u8| -> Result<f64, RenderError> {
             let start = Instant::now();
             let mut enc = r.gpu.device.create_command_encoder(&Default::default());
@@ -723,6 +693,26 @@ impl Renderer {
     /// Read the work counters and pass times of the last submitted frame (waits for it).
     pub fn read_stats(&self) -> Result<FrameStats, RenderError> {
         stats::read_now(&self.gpu, &self.march.counters, self.timer.as_ref())
+    }
+
+    /// The frame's uniforms for a view marched at width × height and presented `target_width`
+    /// wide (the weather already blended for the settings' time).
+    fn uniforms(
+        &self,
+        view: &View,
+        (width, height, target_width): (u32, u32, u32),
+        settings: &Settings,
+    ) -> Result<frame::FrameUniforms, RenderError> {
+        frame::build(&frame::FrameInput {
+            view: *view,
+            width,
+            height,
+            target_width,
+            sky: self.sky(view, settings)?,
+            region: &self.meta.region,
+            weather: &self.weather,
+            settings,
+        })
     }
 
     /// The sky for a view: computed from the time and place, or the override.

@@ -52,29 +52,8 @@ pub struct SectionPass {
 
 impl SectionPass {
     pub fn new(gpu: &Gpu, march: &MarchPass) -> SectionPass {
-        let dev = &gpu.device;
-        let layout = contract::layout(
-            dev,
-            "section: own",
-            OWN_BINDINGS,
-            GROUP_TARGET,
-            wgpu::ShaderStages::COMPUTE,
-        );
-        let [device_layout, map_layout] = march.shared_layouts();
-        let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("section"),
-            bind_group_layouts: &[Some(device_layout), Some(map_layout), Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = shader::module(dev, "section", shader::SECTION);
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("section"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let (pipeline, layout) =
+            march.cloud_stage(gpu, "section", (OWN_BINDINGS, shader::SECTION), &[]);
         SectionPass { pipeline, layout }
     }
 

@@ -223,32 +223,12 @@ impl ShadowPass {
         sky: SkyViews,
     ) -> ShadowPass {
         let dev = &gpu.device;
-        let own_layout = contract::layout(
-            dev,
-            "shadow: own",
-            OWN_BINDINGS,
-            GROUP_TARGET,
-            wgpu::ShaderStages::COMPUTE,
+        let (pipeline, own_layout) = march.cloud_stage(
+            gpu,
+            "shadow",
+            (OWN_BINDINGS, shader::SHADOW),
+            &[("MEAN_DENSITY", 1.0)],
         );
-        let [device_layout, map_layout] = march.shared_layouts();
-        let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("shadow"),
-            bind_group_layouts: &[Some(device_layout), Some(map_layout), Some(&own_layout)],
-            immediate_size: 0,
-        });
-        let module = shader::module(dev, "shadow", shader::SHADOW);
-        let mean = [("MEAN_DENSITY", 1.0)];
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("shadow"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &mean,
-                ..Default::default()
-            },
-            cache: None,
-        });
         let params = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shadow params"),
             size: std::mem::size_of::<ShadowParams>() as u64,
