@@ -180,8 +180,11 @@ fn multiscatter(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
+    // Each direction stands for 4π/N of the sphere; the light arriving along it is scattered
+    // on isotropically (p_u = 1/4π, the paper's eq. 5), while f_ms (eq. 6) already carries its
+    // p_u inside the sum.
     let k = 4.0 * PI / f32(nd * nd);
-    l2 *= k;
+    l2 *= k / (4.0 * PI);
     fms *= k;
     let psi = l2 / max(vec3<f32>(1.0) - fms, vec3<f32>(1e-3));
     textureStore(lut_out, id.xy, vec4<f32>(psi, 1.0));
