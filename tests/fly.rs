@@ -209,15 +209,15 @@ fn window_shows_clouds_and_the_panel() {
         let _ = std::fs::copy(&s0, Path::new(&keep).join("fly-clear.png"));
     }
     // The same camera, time and exposure start in both runs: only the map differs, so what
-    // differs is the cloud. The window adapts its exposure, and from 6 km the air in front of
-    // the deck and of the sea is most of the light (measured: luma 0.80 against 0.82, mean
-    // |Δ| 0.041, blue−red 0.187 against 0.238): the deck must change the view and be whiter.
+    // differs is the cloud. The window adapts its exposure to each view, which narrows the
+    // brightness gap (measured: luma 0.66 against 0.56, mean |Δ| 0.099, blue−red 0.100
+    // against 0.262): the deck must change the view and be whiter than the sea.
     assert!(
-        changed > 0.02,
+        changed > 0.05,
         "the cloud deck hardly changes the view (mean |Δ| {changed:.3})"
     );
     assert!(
-        bd + 0.03 < bg,
+        bd + 0.08 < bg,
         "the cloud deck (blue−red {bd:.3}) must be whiter than the clear view (blue−red {bg:.3})"
     );
     // Not a blank frame: the view (sky over deck) has structure.

@@ -210,8 +210,8 @@ fn a_cloud_shadow_falls_where_geometry_puts_it() {
     });
     let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &map);
     // The geometry of the shadow on the ground, without the air in front of it: seen through
-    // the whole atmosphere the clear air's light (the aerial-perspective table) is about three
-    // times what dark ground (albedo 0.08) sends up, and the shadow's contrast falls to ~12 %.
+    // the whole atmosphere the clear air's own light (the aerial-perspective table) in front of
+    // dark ground (albedo 0.08) lowers the shadow's contrast.
     let mut s = sun_east_settings();
     s.march.aerial = false;
     let mut cam = Camera::new(lat0, lon0, 120_000.0, 0.0, -90.0);
