@@ -45,6 +45,18 @@ shot overcast-above natl $noon --camera 52.0,-25.5,12000 --heading 30 --pitch -2
 # 3: dusk at 44N 3.5W looking east, the Sun just below the horizon behind the camera.
 NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
   shot dusk-east natl 2011-01-15T17:00:00Z --camera 44,-3.5,ground+2 --heading 90 --pitch 4
+# 3b: the Earth's shadow: over the clear Balearic Sea (38N 1E) looking east 20 minutes after
+# sunset (Sun 3-4° down), at a fixed exposure 8 stops over daylight's (auto exposure keeps dusk
+# dark, as a camera would). The old renderer had no such exposure scale: it gets its own default.
+"$STRATUS" render --map "$tmp/natl.json" --preset balanced --size 960x540 --time 2011-01-15T17:20:00Z \
+  --camera 38,1,ground+2 --heading 90 --pitch 8 --exposure 8 --out "$tmp/after.png" 2> >(grep -v XDG_RUNTIME >&2)
+if [ -n "$old" ]; then
+  "$old" render --map "$tmp/natl.json" --preset balanced --size 960x540 --time 2011-01-15T17:20:00Z \
+    --camera 38,1,2 --heading 90 --pitch 8 --out "$tmp/before.png" 2> >(grep -v XDG_RUNTIME >&2)
+  python3 scripts/side-by-side.py "$out/earth-shadow.png" "$tmp/after.png" "$tmp/before.png"
+else
+  python3 scripts/side-by-side.py "$out/earth-shadow.png" "$tmp/after.png"
+fi
 # 4: night, the waxing gibbous Moon 68° up in the south-south-east.
 NEWCAM=44,-3.5,ground+2 OLDCAM=44,-3.5,260 \
   shot night-moon natl 2011-01-15T20:00:00Z --camera 44,-3.5,ground+2 --heading 156 --pitch 40
