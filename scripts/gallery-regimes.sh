@@ -49,5 +49,6 @@ shot cumulus --camera 44.8,-47.8,3000 --heading 30 --pitch -25
 # 6 km, 145 km to the south-south-east, looking NNW and 4° up.
 shot cumulonimbus --camera 48.7,-23.5,6000 --heading 345 --pitch 4
 # 5: cirrus, 44N 3.5W (high 0.43, 10.1-13.0 km, nothing below), from the ground looking N 30° up.
-shot cirrus --camera 44.0,-3.5,50 --heading 0 --pitch 30
+# (300 m: the ground there stands at 254 m since issue 14; the left half was made at 50 m over the old sea-level ground.)
+shot cirrus --camera 44.0,-3.5,300 --heading 0 --pitch 30
 echo "gallery written to $out"
