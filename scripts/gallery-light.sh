@@ -11,13 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 gfs=data-samples/gfs-2011011012-f120-2p5.grib2
 out=docs/gallery/light
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-mkdir -p "$out"
-if [ -z "${STRATUS:-}" ]; then
-  cargo build --release -q
-  STRATUS=target/release/stratus
-fi
+. scripts/gallery-setup.sh
 old=${OLD_STRATUS:-}
 "$STRATUS" ingest "$gfs" --region 30,65,-60,10 --size 1024x512 --out "$tmp/natl.png" >/dev/null
 "$STRATUS" ingest "$gfs" --level 400 --region 0,55,39,105 --size 1300x1100 --out "$tmp/ea400.png" >/dev/null

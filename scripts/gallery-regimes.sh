@@ -12,13 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 gfs=data-samples/gfs-2011011012-f120-2p5.grib2
 out=docs/gallery/regimes
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-mkdir -p "$out"
-if [ -z "${STRATUS:-}" ]; then
-  cargo build --release -q
-  STRATUS=target/release/stratus
-fi
+. scripts/gallery-setup.sh
 old=${OLD_STRATUS:-}
 # The new binary writes the map and its structure images; the old one reads the same map
 # (it ignores the structure images and draws each layer as a band).

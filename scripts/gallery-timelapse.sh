@@ -13,13 +13,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 series=../shared/data/gfs-series/gfs.t18z.pgrb2.2p50
 out=docs/gallery/timelapse
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-mkdir -p "$out"
-if [ -z "${STRATUS:-}" ]; then
-  cargo build --release -q
-  STRATUS=target/release/stratus
-fi
+. scripts/gallery-setup.sh
 "$STRATUS" ingest "$series.f000" "$series.f006" --region 30,70,-60,40 --size 1024x512 \
   --out "$tmp/na.png" >/dev/null
 # fps 1 over the path's 36 s: frame i is at +10·i minutes.
