@@ -16,13 +16,20 @@ G=../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
 "$S" ingest "$G" --region 0,55,39,105 --size 1300x1100 --out "$OUT/ea.png" | tee "$OUT/ingest.txt"
 "$S" bench | tee "$OUT/bench.md"
 "$S" bench --json > "$OUT/bench.json"
+# Every preset at full HD and 4K, marching every pixel and with reprojection (each frame after
+# the first marches the preset's subset and reprojects the rest; the march time then spans the
+# subset march and the reproject stage).
 for size in 1920x1080 3840x2160; do
-  for preset in fast balanced high; do
-    echo "== $size $preset" | tee -a "$OUT/frames.txt"
-    "$S" render --map "$OUT/ea.json" --camera 30,75,12000 --heading 60 --pitch -10 \
-      --size "$size" --preset "$preset" --timings --repeat 5 --out "$OUT/ea-$size-$preset.png" \
-      2>&1 | tee -a "$OUT/frames.txt"
+  for preset in fast balanced high reference; do
+    for rp in off on; do
+      echo "== $size $preset reprojection $rp" | tee -a "$OUT/frames.txt"
+      "$S" render --map "$OUT/ea.json" --camera 35,74,12000 --heading 60 --pitch -15 \
+        --size "$size" --preset "$preset" --reprojection "$rp" --timings --repeat 9 \
+        --time 2011-01-15T06:40:00Z --out "$OUT/ea-$size-$preset-$rp.png" \
+        2>&1 | tee -a "$OUT/frames.txt"
+    done
   done
 done
+"$S" bench --reprojection --map "$OUT/ea.json" --chart "$OUT/reprojection.png" | tee "$OUT/reprojection.md"
 "$S" score --map "$OUT/ea.json" --json > "$OUT/score.json"
 echo "done: $OUT"

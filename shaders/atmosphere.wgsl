@@ -7,7 +7,7 @@
 // at 32 distances, the aerial perspective of ground and cloud. Earth's shadow comes out of the
 // transmittance: a point of air the Earth hides from the Sun scatters none of its light.
 
-@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var lut_out: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(0) var trans_lut: texture_2d<f32>;
 @group(2) @binding(1) var ms_lut: texture_2d<f32>;

@@ -1,7 +1,7 @@
 // Cloud density, shared by the stages that evaluate the march's cloud (prepended after
 // common.wgsl): the device's and the map's bindings (groups 0 and 1, render::march's table),
 // the weather lookup, the paper's layer density (DESIGN §2) and the genus columns (DESIGN §7).
-@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(0) @binding(1) var shape_tex: texture_3d<f32>;
 @group(0) @binding(2) var detail_tex: texture_3d<f32>;
 @group(0) @binding(3) var clamp_lin: sampler;

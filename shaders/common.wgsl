@@ -68,6 +68,9 @@ struct Frame {
     blend_back_s: f32,          // seconds the earlier step is carried (sampled upwind)
     drift_high: vec3<f32>,
     blend_ahead_s: f32,         // seconds to the later step (sampled downwind)
+    subset_offset: vec2<f32>,   // the pixel of each subset cell marched this frame (render::reproject)
+    subset_n: f32,              // subset cell side (px): 1 marches every pixel
+    _pad1: f32,
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and

@@ -5,8 +5,9 @@
 // (as snow does), and dusk and night stay dark (no opening up once the Sun is down; DESIGN §8).
 // One workgroup.
 
-@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var cloud: texture_2d<f32>;
+@group(1) @binding(1) var scene: texture_2d<f32>;    // the background behind it (march.wgsl)
 @group(2) @binding(0) var<storage, read_write> exposure: ExposureState;
 @group(2) @binding(1) var<uniform> ep: ExposureParams;
 
@@ -27,8 +28,9 @@ fn main(@builtin(local_invocation_index) li: u32) {
     for (var k = 0u; k < PER_LANE; k++) {
         let i = li * PER_LANE + k;
         let uv = (vec2<f32>(f32(i % METER), f32(i / METER)) + 0.5) / f32(METER);
-        let c = textureLoad(cloud, clamp(vec2<i32>(uv * vec2<f32>(dims)), vec2<i32>(0), dims - 1), 0);
-        let bg = background(persp_dir(f, uv * f.out_size));
+        let at = clamp(vec2<i32>(uv * vec2<f32>(dims)), vec2<i32>(0), dims - 1);
+        let c = textureLoad(cloud, at, 0);
+        let bg = textureLoad(scene, at, 0).rgb;
         s += log(max(luminance(bg * (1.0 - c.a) + c.rgb), 1e-12));
     }
     sums[li] = s;

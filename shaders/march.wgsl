@@ -5,6 +5,13 @@
 // 2 as the output size, 3 (scene.wgsl) as the key light's direction.
 @group(2) @binding(0) var out_cloud: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(1) var<storage, read_write> cut_mask: array<atomic<u32>>;   // 1 bit per pixel
+// What lies behind the cloud (linear radiance of sky or ground, scene.wgsl's background) and
+// the pixel's representative distance in km (the cloud's opacity-weighted distance where it is
+// at least half opaque, else the ground's; 0 for sky): what reprojection moves pixels by.
+@group(2) @binding(2) var out_scene: texture_storage_2d<rgba16float, write>;
+
+// The opacity-weighted distance (m) of the cloud the last march() saw (0 where none).
+var<private> cloud_dist: f32;
 
 var<workgroup> wg_count: array<atomic<u32>, N_COUNTERS>;
 
@@ -74,6 +81,7 @@ fn seg_start(seg: vec2<f32>, jitter: f32) -> vec2<f32> {
 }
 
 fn march(r: Ray, jitter: f32) -> vec4<f32> {
+    cloud_dist = 0.0;
     let mu = dot(r.d, r.up);
     let outer = shell_hits(r.h, mu, f.shell_top_m);
     if (outer.y < 0.0 || outer.x > outer.y) {
@@ -312,11 +320,12 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     if (alpha <= 0.0) {
         return vec4<f32>(0.0);
     }
+    let dist = depth_w / alpha;
+    cloud_dist = dist;
     if (!no_sky) {
         // The clear air (the aerial-perspective table) and the haze (Koschmieder) toward the
         // opacity-weighted cloud distance.
         // The air's light is the table's for a clear sky: dimmed, as the haze's, under cloud.
-        let dist = depth_w / alpha;
         let air = haze_light();
         let ap = aerial(r.d, dist);
         col = col * ap.a + ap.rgb * air * alpha;
@@ -333,9 +342,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         atomicStore(&wg_count[li], 0u);
     }
     workgroupBarrier();
-    let size = vec2<u32>(f.out_size);
-    if (all(id.xy < size)) {
-        let px = vec2<f32>(id.xy) + 0.5;
+    // One invocation per subset cell: the cell's pixel this frame (every pixel when n is 1).
+    let n = max(u32(f.subset_n), 1u);
+    let full = vec2<u32>(f.out_size);
+    let cells = (full + vec2<u32>(n - 1u)) / n;
+    if (all(id.xy < cells)) {
+        let pix = min(id.xy * n + vec2<u32>(f.subset_offset), full - 1u);
+        let px = vec2<f32>(pix) + 0.5;
         var jitter = 0.5;
         if (has_flag(f, FLAG_JITTER)) {
             // Interleaved gradient noise (Jimenez 2014), shifted per frame.
@@ -343,10 +356,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
             jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
         }
         local_count[C_RAYS] = 1u;
-        let c = march(make_ray(px), jitter);
+        let r = make_ray(px);
+        let c = march(r, jitter);
         textureStore(out_cloud, vec2<i32>(id.xy), c);
+        var scene = vec4<f32>(0.0);
+        if (!has_flag(f, FLAG_NO_SKY)) {
+            let bg = background_at(r.d);
+            scene = vec4<f32>(bg.rgb, select(bg.a, cloud_dist, c.a >= 0.5) * 1e-3);
+        }
+        textureStore(out_scene, vec2<i32>(id.xy), scene);
         if (local_count[C_CUT] != 0u) {
-            let i = id.y * size.x + id.x;
+            let i = id.y * cells.x + id.x;
             atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));
         }
         for (var k = 0u; k < N_COUNTERS; k++) {

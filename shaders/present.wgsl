@@ -2,8 +2,10 @@
 // (scene.wgsl: sky, Sun, Moon, stars, the ground in the clouds' shadows), applies the exposure
 // stage's exposure and a filmic tone curve; the sRGB target encodes.
 
-@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var cloud: texture_2d<f32>;    // the march output; lives with its size
+// The background behind it and each pixel's distance in km (march.wgsl `out_scene`).
+@group(1) @binding(1) var scene: texture_2d<f32>;
 // The exposure stage's result for this frame (render::exposure).
 @group(2) @binding(0) var<storage, read> exposure: ExposureState;
 
@@ -34,6 +36,14 @@ fn aces(x: vec3<f32>) -> vec3<f32> {
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
+// How much a march pixel counts in the upsample beside the nearest one: less as its opacity
+// (da) and its distance (km, 0 for sky) differ.
+fn edge_weight(da: f32, d: f32, near_d: f32) -> f32 {
+    let far = max(max(d, near_d), 1e-3);
+    let dd = select(abs(d - near_d) / far, 1.0, (d > 0.0) != (near_d > 0.0));
+    return 1.0 / (1.0 + 16.0 * abs(da) + 8.0 * dd);
+}
+
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
@@ -48,27 +58,54 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // and it is the plain 3×3 mean. When the window marches at a fraction of its size
     // (march_scale < 1) it is also the upsample.
     let resolve = has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY);
-    if (resolve || f.march_scale < 0.99) {
+    let upsample = f.march_scale < 0.99;
+    var bg: vec3<f32>;
+    if (resolve || upsample) {
         let q = px - 0.5;
         let i0 = vec2<i32>(floor(q));
         let fr = q - floor(q);
         let wx = vec4<f32>(1.0 - fr.x, 1.0, 1.0, fr.x) / 3.0;
         let wy = vec4<f32>(1.0 - fr.y, 1.0, 1.0, fr.y) / 3.0;
+        // Edge-aware where it upsamples: a march pixel counts less the more its opacity and
+        // distance differ from the nearest one's, so a cloud's edge stays as sharp as the
+        // march found it instead of softening over the footprint (a joint bilateral filter on
+        // the march's own opacity and depth). At 1:1 every weight is 1: the plain resolve.
+        let near = textureLoad(cloud, clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1), 0).a;
+        let near_d = textureLoad(scene, clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1), 0).a;
         c = vec4<f32>(0.0);
+        var wsum = 0.0;
+        var bsum = vec3<f32>(0.0);
+        var bw = 0.0;
         for (var j = 0; j < 4; j++) {
-            var row = vec4<f32>(0.0);
             for (var i = 0; i < 4; i++) {
                 let at = clamp(i0 + vec2<i32>(i - 1, j - 1), vec2<i32>(0), dims - 1);
-                row += wx[i] * textureLoad(cloud, at, 0);
+                let t = textureLoad(cloud, at, 0);
+                let sc = textureLoad(scene, at, 0);
+                var w = wx[i] * wy[j];
+                if (upsample) {
+                    w *= edge_weight(t.a - near, sc.a, near_d);
+                }
+                c += w * t;
+                wsum += w;
+                // The background has no jitter to resolve: its own bilinear taps (the middle
+                // four) where it upsamples.
+                if (i == 1 || i == 2) && (j == 1 || j == 2) {
+                    let wb = select(1.0 - fr.x, fr.x, i == 2) * select(1.0 - fr.y, fr.y, j == 2)
+                        * select(1.0, edge_weight(0.0, sc.a, near_d), upsample);
+                    bsum += wb * sc.rgb;
+                    bw += wb;
+                }
             }
-            c += wy[j] * row;
+        }
+        c /= max(wsum, 1e-6);
+        bg = bsum / max(bw, 1e-6);
+        if (!upsample) {
+            bg = textureLoad(scene, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0).rgb;
         }
     } else {
-        c = textureLoad(cloud, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0);
-    }
-    var bg = vec3<f32>(0.0);
-    if (!has_flag(f, FLAG_NO_SKY)) {
-        bg = background(persp_dir(f, px));
+        let at = clamp(vec2<i32>(px), vec2<i32>(0), dims - 1);
+        c = textureLoad(cloud, at, 0);
+        bg = textureLoad(scene, at, 0).rgb;
     }
     let lin = bg * (1.0 - c.a) + c.rgb;
     var out = aces(lin * exposure.value);

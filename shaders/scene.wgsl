@@ -252,7 +252,9 @@ fn moon_disc(v: vec3<f32>) -> vec3<f32> {
 }
 
 // What a view ray from the camera meets where there is no cloud.
-fn background(v: vec3<f32>) -> vec3<f32> {
+// The background along v (linear radiance) and the distance to the ground it shows (m; 0 for
+// sky).
+fn background_at(v: vec3<f32>) -> vec4<f32> {
     let up = f.cam_up;
     let h = f.cam_alt_m;
     let mu = dot(v, up);
@@ -278,7 +280,7 @@ fn background(v: vec3<f32>) -> vec3<f32> {
         let ap = aerial(v, t);
         let lit = g.yzw * ground_irradiance(p, n, g.x, sky_ambient()) * ap.a + ap.rgb * air;
         let fog = haze_transmittance(f, h, g.x, t);
-        return lit * fog + sky_seen(v) * air * (1.0 - fog);
+        return vec4<f32>(lit * fog + sky_seen(v) * air * (1.0 - fog), t);
     }
     var c = sky_seen(v);
     let above = smoothstep(-0.01, 0.01, mu);
@@ -286,5 +288,5 @@ fn background(v: vec3<f32>) -> vec3<f32> {
     c += moon_disc(v) * above;
     let dark = 1.0 - smoothstep(-0.2, 0.0, dot(f.sun_dir, up));
     c += stars(v) * dark * above;
-    return c;
+    return vec4<f32>(c, 0.0);
 }

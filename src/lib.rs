@@ -8,6 +8,7 @@ pub mod flight;
 pub mod follow;
 pub mod picture;
 pub mod render;
+pub mod reprojection_bench;
 pub mod scenes;
 pub mod score;
 pub mod sun;

@@ -36,7 +36,11 @@ impl App {
             .follow
             .as_mut()
             .map(|f| pilot::follow(&mut r.pilot, f, Instant::now()));
-        if !r.controls.paused && frames_wanted.is_none() && following.is_none() {
+        if let Some(path) = &self.opts.path {
+            let start = *r.path_start.get_or_insert_with(Instant::now);
+            let t = start.elapsed().as_secs_f64() % path.duration().max(1e-3);
+            pilot::fly_path(&mut r.pilot, path, t);
+        } else if !r.controls.paused && frames_wanted.is_none() && following.is_none() {
             r.pilot.step(&r.input.keys, dt);
         }
         r.controls.advance_time(dt);

@@ -58,6 +58,16 @@ pub struct FlyOptions {
     pub time_rate: moment::Rate,
     /// A series: the window flies through its steps (the time slider spans them).
     pub timeline: Option<crate::timeline::Timeline>,
+    /// `--reprojection`: march a subset of the pixels each frame and reproject the rest.
+    pub reprojection: bool,
+    /// `--render-scale`: the march's size relative to the window (default: 1 on a GPU, ¼ on a
+    /// CPU adapter without reprojection, ½ with it).
+    pub render_scale: Option<f32>,
+    /// `--visibility-km`: the haze's meteorological visibility (the panel changes it).
+    pub visibility_km: f64,
+    /// `--path`: the camera plays this keyframed flight in real time, looping (the frame-time
+    /// measurement's scripted flight).
+    pub path: Option<crate::flight::FlightPath>,
 }
 
 /// The window's surface and how it is configured.
@@ -152,6 +162,8 @@ struct Running {
     /// The march size of the last frame.
     march_size: (u32, u32),
     want_shot: bool,
+    /// When `--path` started playing.
+    path_start: Option<std::time::Instant>,
 }
 
 pub struct App {
@@ -248,11 +260,20 @@ impl App {
         let valid = moment::slider_base(valid_time(&self.opts.map), timeline.as_ref());
         let rh_cr = LayerKind::ALL.map(LayerKind::default_rh_cr);
         let mut controls = Controls::new(self.opts.preset, rh_cr, self.opts.plan.is_some(), cpu);
+        controls.reproject = self.opts.reprojection;
+        controls.render_scale = self
+            .opts
+            .render_scale
+            .unwrap_or_else(|| panel::default_render_scale(cpu, self.opts.reprojection));
+        controls.visibility_km = self.opts.visibility_km;
         controls.set_map(&self.opts.map);
         controls.set_time(valid, self.opts.time, timeline.as_ref().map(|t| t.span()));
         controls.time_rate = self.opts.time_rate;
         if cpu {
-            controls.status = "CPU adapter: marching at ¼ resolution".into();
+            controls.status = format!(
+                "CPU adapter: marching at {:.0} % of the window's size",
+                controls.render_scale * 100.0
+            );
         }
         screen.window.request_redraw();
         Ok(Running {
@@ -271,6 +292,7 @@ impl App {
             clock: Clock::new(),
             march_size: (0, 0),
             want_shot: false,
+            path_start: None,
         })
     }
 

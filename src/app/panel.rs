@@ -3,7 +3,7 @@
 use chrono::{DateTime, Duration, Utc};
 
 use super::moment::Rate;
-use crate::render::{Preset, Settings};
+use crate::render::{Preset, Reprojection, Settings};
 
 /// What the panel edits, kept between frames.
 pub struct Controls {
@@ -31,6 +31,10 @@ pub struct Controls {
     pub exposure: f64,
     /// March resolution relative to the window.
     pub render_scale: f32,
+    /// March a subset of the pixels each frame and reproject the rest (render::reproject).
+    pub reproject: bool,
+    /// Meteorological visibility (km) for the haze.
+    pub visibility_km: f64,
     pub paused: bool,
     pub teleport: String,
     pub status: String,
@@ -94,7 +98,9 @@ impl Controls {
             sun_azimuth: 135.0,
             sun_elevation: 45.0,
             exposure: d.exposure_ev,
-            render_scale: if cpu { 0.25 } else { 1.0 },
+            render_scale: default_render_scale(cpu, true),
+            reproject: true,
+            visibility_km: d.visibility_m / 1000.0,
             paused: false,
             teleport: String::new(),
             status: String::new(),
@@ -116,6 +122,12 @@ impl Controls {
         s.exposure_ev = self.exposure;
         s.exposure_rate = WINDOW_ADAPTATION;
         s.frame_index = frame;
+        s.visibility_m = self.visibility_km * 1000.0;
+        if self.reproject {
+            // A teleport or a new map: the fresh subset, upsampled, until the history fills
+            // again (a full march would stall the window for a frame).
+            s.reprojection = Reprojection::On { full_reset: false };
+        }
         if self.sun_override {
             let (a, e) = (
                 self.sun_azimuth.to_radians(),
@@ -128,6 +140,17 @@ impl Controls {
             ));
         }
         s
+    }
+}
+
+/// The march's size relative to the window when none is given: the whole window on a GPU; on a
+/// CPU adapter ¼ (½ with reprojection, which marches a quarter of those pixels a frame and
+/// keeps the rest from the frames before: measured in docs/fly.md).
+pub fn default_render_scale(cpu: bool, reproject: bool) -> f32 {
+    match (cpu, reproject) {
+        (false, _) => 1.0,
+        (true, false) => 0.25,
+        (true, true) => 0.5,
     }
 }
 
@@ -191,6 +214,12 @@ pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
                     }
                 });
             ui.add(egui::Slider::new(&mut c.render_scale, 0.1..=1.0).text("render scale"));
+            ui.checkbox(&mut c.reproject, "reprojection (march a subset a frame)");
+            ui.add(
+                egui::Slider::new(&mut c.visibility_km, 1.0..=200.0)
+                    .logarithmic(true)
+                    .text("visibility (km)"),
+            );
             let (lo, hi) = c.time_range_h;
             ui.add(egui::Slider::new(&mut c.time_offset_h, lo..=hi).text(c.time_label));
             ui.horizontal(|ui| {

@@ -138,6 +138,21 @@ pub fn follow(pilot: &mut Pilot, follower: &mut Follower, now: Instant) -> Statu
     follower.status(now)
 }
 
+/// Put the pilot where a keyframed path is `t` seconds in (`fly --path`).
+pub fn fly_path(pilot: &mut Pilot, path: &crate::flight::FlightPath, t: f64) {
+    let (cam, _) = path.at(t);
+    let f = cam.forward_enu.normalize();
+    pilot.lat = cam.lat_deg;
+    pilot.lon = cam.lon_deg;
+    pilot.alt_m = cam.alt_m;
+    pilot.heading = f.x.atan2(f.y).to_degrees().rem_euclid(360.0);
+    pilot.pitch = f.z.clamp(-1.0, 1.0).asin().to_degrees();
+    pilot.roll = cam.roll_deg;
+    pilot.fov = cam.fov_deg;
+    pilot.look_yaw = 0.0;
+    pilot.look_pitch = 0.0;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

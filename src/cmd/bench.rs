@@ -34,6 +34,20 @@ pub struct Args {
     /// Adapter to use (any part of its name).
     #[arg(long)]
     pub adapter: Option<String>,
+    /// Measure temporal reprojection instead: fly `--path` over `--map` at 15 frames a second
+    /// (a cruise, a 3°/s turn, a teleport), each reprojected frame against a full march at the
+    /// same camera; a table, and with --chart the error against frame number.
+    #[arg(long, requires = "map")]
+    pub reprojection: bool,
+    /// The map the reprojection is measured over (e.g. the real GFS East Asia all-layers map).
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// The flight: straight for its first 15 s, then turning (docs/flights/ea-cruise.json).
+    #[arg(long, default_value = "docs/flights/ea-cruise.json")]
+    pub path: PathBuf,
+    /// Quality preset the reprojection is measured at.
+    #[arg(long, default_value = "balanced")]
+    pub preset: stratus::render::Preset,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -45,6 +59,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(c) = &a.chart {
         // Before minutes of benchmarking.
         check_out(c, &[])?;
+    }
+    if a.reprojection {
+        return reprojection(&a, size);
     }
     let sample = scenes::synthetic();
     let map: CloudMap = sample.map()?;
@@ -87,6 +104,72 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     } else {
         out!("adapter: {}\n", gpu::describe(&r.gpu.info))?;
         out!("{}", bench::table(&rows).trim_end_matches('\n'))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bench --reprojection`: the reprojection's error along three flights.
+fn reprojection(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
+    use stratus::reprojection_bench::{along, chart, measure, noon_of, table, Flight};
+    let map_path = a
+        .map
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("--reprojection needs --map"))?;
+    let map = CloudMap::load(map_path)?;
+    let path = stratus::flight::FlightPath::load(&a.path)?;
+    let time = noon_of(&path)
+        .or(map.meta.source.valid_time)
+        .ok_or_else(|| anyhow::anyhow!("neither the path nor the map gives a time"))?;
+    let mut s = stratus::render::Settings::new(a.preset, time);
+    // A fixed exposure: the pictures are compared by their pixels.
+    s.exposure_auto = false;
+    const FPS: f64 = 15.0;
+    // A teleport: 1 s along the path, then the same flight 1° (111 km) further north.
+    let mut teleport = along(&path, 0.0, 15, FPS);
+    teleport.extend(along(&path, 1.0, 30, FPS).into_iter().map(|mut c| {
+        c.lat_deg += 1.0;
+        c
+    }));
+    let flights = [
+        Flight {
+            name: "cruise 230 m/s".into(),
+            cameras: along(&path, 0.0, 45, FPS),
+        },
+        Flight {
+            name: "turn 3°/s".into(),
+            cameras: along(&path, 15.0, 45, FPS),
+        },
+        Flight {
+            name: "teleport at frame 15".into(),
+            cameras: teleport,
+        },
+    ];
+    let total = flights.iter().map(|f| f.cameras.len()).sum::<usize>() as u64;
+    let gpus = [
+        Gpu::new(a.adapter.as_deref())?,
+        Gpu::new(a.adapter.as_deref())?,
+    ];
+    eprintln!("stratus: adapter {}", gpu::describe(&gpus[0].info));
+    let pb = progress_bar(total, "reprojection");
+    let rows = measure(gpus, &map, &s, &flights, size, &|what| {
+        pb.set_message(what.to_string());
+        pb.inc(1);
+    })?;
+    pb.finish_and_clear();
+    if let Some(c) = &a.chart {
+        let img = chart(&rows, 0.0125);
+        write_png(
+            c,
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        print!("{}", table(&rows));
     }
     Ok(ExitCode::SUCCESS)
 }

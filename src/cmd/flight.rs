@@ -64,6 +64,11 @@ pub struct Args {
     #[arg(long, default_value_t = DEFAULT_MAX_FRAMES,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub max_frames: u64,
+    /// Temporal reprojection: each frame marches one pixel of each subset cell (the preset's
+    /// size) and reprojects the rest from the frame before (a frame whose history does not
+    /// fit, the first or after a jump, marches every pixel): on or off.
+    #[arg(long, default_value = "on", action = clap::ArgAction::Set, value_parser = super::fly::parse_on_off)]
+    pub reprojection: bool,
     #[command(flatten)]
     pub look: LookOpts,
 }
@@ -120,7 +125,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     check_space(&a.out, n, w, h)?;
     // A series: the GPU holds the two steps around each frame's time and blends them.
     let (map, timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
-    let settings = a.look.settings(&map, &a.map)?;
+    let mut settings = a.look.settings(&map, &a.map)?;
+    if a.reprojection {
+        settings.reprojection = stratus::render::Reprojection::On { full_reset: true };
+    }
     if let Cameras::Follow(f) = &mut source {
         // Before anything is created: a simulator that never speaks leaves no trace.
         f.wait_first(a.wait)?;

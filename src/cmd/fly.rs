@@ -43,9 +43,33 @@ pub struct Args {
     /// the panel changes it).
     #[arg(long, default_value = "pause")]
     pub time_rate: Rate,
+    /// Temporal reprojection: each frame marches one pixel of each subset cell (the preset's
+    /// size) and reprojects the rest from the frames before: on or off.
+    #[arg(long, default_value = "on", action = clap::ArgAction::Set, value_parser = parse_on_off)]
+    pub reprojection: bool,
+    /// The march's size relative to the window, 0.05..1 (default: 1 on a GPU; on a CPU adapter
+    /// ½ with reprojection, ¼ without).
+    #[arg(long)]
+    pub render_scale: Option<f32>,
+    /// Meteorological visibility in km (aerial haze; the panel changes it).
+    #[arg(long, default_value_t = stratus::render::defaults::VISIBILITY_M / 1000.0)]
+    pub visibility_km: f64,
+    /// Play a keyframed flight path (the `flight` command's JSON) in real time, looping: the
+    /// camera follows it instead of the keyboard.
+    #[arg(long, conflicts_with = "follow")]
+    pub path: Option<PathBuf>,
     /// Where --frames saves its last frame (PNG).
     #[arg(long, requires = "frames")]
     pub screenshot: Option<PathBuf>,
+}
+
+/// `on` or `off`.
+pub fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("\"{s}\" is neither `on` nor `off`")),
+    }
 }
 
 fn is_json(p: &std::path::Path) -> bool {
@@ -65,12 +89,26 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         check_out(shot, &inputs)?;
     }
     let size = parse_size(&a.window)?;
+    if let Some(r) = a.render_scale.filter(|r| !(0.05..=1.0).contains(r)) {
+        anyhow::bail!("--render-scale {r} must be in 0.05..=1");
+    }
+    if !(a.visibility_km.is_finite() && a.visibility_km > 0.0) {
+        anyhow::bail!(
+            "--visibility-km {} must be a positive number",
+            a.visibility_km
+        );
+    }
     // Bound before the window opens: a port in use is a one-line error, not a window.
     let follow = match &a.follow {
         Some(s) => Some(Follower::bind(s.parse::<Source>()?)?),
         None => None,
     };
     let time = a.time.as_deref().map(parse_time).transpose()?;
+    let path = a
+        .path
+        .as_deref()
+        .map(stratus::flight::FlightPath::load)
+        .transpose()?;
     let (map, plan, timeline) = if is_json(&a.input) {
         let (map, timeline) = stratus::timeline::open_scene(&a.input, time)?;
         (map, None, timeline)
@@ -99,6 +137,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         time,
         time_rate: a.time_rate,
         timeline,
+        reprojection: a.reprojection,
+        render_scale: a.render_scale,
+        visibility_km: a.visibility_km,
+        path,
     })?;
     Ok(ExitCode::SUCCESS)
 }

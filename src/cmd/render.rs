@@ -46,6 +46,11 @@ pub struct Args {
     /// Render this many times and report the median (a first frame pays for warm-up).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeat: u32,
+    /// Temporal reprojection: a single frame has no history and marches every pixel; with
+    /// --repeat, `on` makes each frame after the first march the preset's subset and reproject
+    /// the rest from the frame before, as the window does (for timing it).
+    #[arg(long, default_value = "off", action = clap::ArgAction::Set, value_parser = super::fly::parse_on_off)]
+    pub reprojection: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -53,6 +58,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // A series is blended on the GPU (the two steps around --time), as `flight` does.
     let (map, mut timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
     let mut settings = a.look.settings(&map, &a.map)?;
+    if a.reprojection {
+        settings.reprojection = stratus::render::Reprojection::On { full_reset: true };
+    }
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,
         (Some(c), false) => View::Perspective(parse_camera(c, a.heading, a.pitch, a.fov, &map)?),

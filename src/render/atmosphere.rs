@@ -23,7 +23,7 @@ pub const REBUILD_ALT_M: f32 = 100.0;
 
 /// Every binding of atmosphere.wgsl.
 pub const BINDINGS: &[Binding] = &[
-    contract::uniform::<FrameUniforms>(0, 0),
+    contract::frame(0, 0),
     Binding {
         group: 1,
         binding: 0,

@@ -246,6 +246,19 @@ pub const fn uniform<T: GpuStruct>(group: u32, binding: u32) -> Binding {
     }
 }
 
+/// The frame's binding (`FrameUniforms`, `f: Frame` in WGSL): a read-only storage buffer, not a
+/// uniform buffer. Mesa's lavapipe compiles a variant of a shader for each set of values of the
+/// uniforms its branches depend on ("inlined uniforms"); the camera's up and the Sun's
+/// direction are among them, so a camera that moved recompiled the march every frame (about
+/// 0.8 s a frame in the window on 2 cores). Storage buffers are never inlined.
+pub const fn frame(group: u32, binding: u32) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource: Resource::StorageRead,
+    }
+}
+
 /// The structs shared by every stage that declares them.
 pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
     use super::exposure::{ExposureParams, ExposureState};

@@ -4,7 +4,6 @@
 //! on the GPU (a storage buffer the present stage reads): nothing waits for it.
 
 use super::contract::{self, Binding, Resource};
-use super::frame::FrameUniforms;
 use super::gpu::Gpu;
 use super::march::bind;
 use super::shader;
@@ -36,10 +35,16 @@ crate::gpu_struct! {
 
 /// Every binding of exposure.wgsl.
 pub const OWN_BINDINGS: &[Binding] = &[
-    contract::uniform::<FrameUniforms>(0, 0),
+    contract::frame(0, 0),
     Binding {
         group: 1,
         binding: 0,
+        resource: Resource::Texture2d { filterable: true },
+    },
+    // The background behind the cloud (the march's scene texture).
+    Binding {
+        group: 1,
+        binding: 1,
         resource: Resource::Texture2d { filterable: true },
     },
     Binding {
@@ -139,13 +144,22 @@ impl ExposurePass {
         }
     }
 
-    /// The cloud texture's bind group: made again only when the output size changes.
-    pub fn bind_target(&self, gpu: &Gpu, cloud: &wgpu::TextureView) -> wgpu::BindGroup {
+    /// The frame's bind group (cloud and scene textures): made again only when the output
+    /// size changes.
+    pub fn bind_target(
+        &self,
+        gpu: &Gpu,
+        cloud: &wgpu::TextureView,
+        scene: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
         bind(
             &gpu.device,
             "exposure: target",
             &self.target_layout,
-            [wgpu::BindingResource::TextureView(cloud)],
+            [
+                wgpu::BindingResource::TextureView(cloud),
+                wgpu::BindingResource::TextureView(scene),
+            ],
         )
     }
 

@@ -107,6 +107,12 @@ crate::gpu_struct! {
         pub drift_high: [f32; 3],
         /// Seconds to the later step (it is sampled this far downwind).
         pub blend_ahead_s: f32,
+        /// Which pixel of each `subset_n`×`subset_n` cell the march takes this frame
+        /// (render::reproject); the march's output is then one texel per cell.
+        pub subset_offset: [f32; 2],
+        /// Side of the subset cell (px): 1 marches every pixel.
+        pub subset_n: f32,
+        pub _pad1: f32,
     }
 }
 
@@ -358,6 +364,8 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.out_size = [inp.width as f32, inp.height as f32];
     u.frame_index = s.frame_index as f32;
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;
+    // Every pixel marched; a reprojected frame takes one per cell (render::reproject).
+    u.subset_n = 1.0;
     if let Some(b) = inp.weather.blend.now {
         u.flags |= flags::BLEND;
         (u.blend_w, u.blend_back_s, u.blend_ahead_s) = (b.w, b.back_s, b.ahead_s);

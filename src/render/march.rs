@@ -1,5 +1,7 @@
 //! March stage: dispatches shaders/march.wgsl, one invocation per pixel, into the cloud texture
-//! (premultiplied linear radiance + opacity), counting the work it does.
+//! (premultiplied linear radiance + opacity) and the background behind it into the scene
+//! texture (radiance + distance), counting the work it does. A reprojected frame marches one
+//! pixel of each subset cell (render::reproject).
 //!
 //! Its bindings come in three groups by lifetime: the device's (uniforms, noise, samplers,
 //! counters), the map's (weather and coarse textures) and the output size's (cloud texture,
@@ -37,7 +39,7 @@ pub const GROUP_TARGET: u32 = 2;
 
 /// Every binding of march.wgsl.
 pub const BINDINGS: &[Binding] = &[
-    contract::uniform::<FrameUniforms>(GROUP_DEVICE, 0),
+    contract::frame(GROUP_DEVICE, 0),
     b(GROUP_DEVICE, 1, Resource::Texture3d),
     b(GROUP_DEVICE, 2, Resource::Texture3d),
     b(GROUP_DEVICE, 3, Resource::Sampler),
@@ -58,6 +60,8 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_MAP, 7, Resource::Texture2d { filterable: true }),
     b(GROUP_TARGET, 0, Resource::StorageTexture(CLOUD_FORMAT, 2)),
     b(GROUP_TARGET, 1, Resource::StorageRw),
+    // The background behind the cloud and the pixel's distance (km).
+    b(GROUP_TARGET, 2, Resource::StorageTexture(CLOUD_FORMAT, 2)),
 ];
 
 /// Every binding of march.wgsl with the scene's group (render::shadow) that it shares.
@@ -134,7 +138,7 @@ impl MarchPass {
         let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniforms"),
             size: std::mem::size_of::<FrameUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let counters = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -259,6 +263,7 @@ impl MarchPass {
         &self,
         gpu: &Gpu,
         cloud: &wgpu::TextureView,
+        scene: &wgpu::TextureView,
         cut_mask: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         bind(
@@ -268,6 +273,7 @@ impl MarchPass {
             [
                 wgpu::BindingResource::TextureView(cloud),
                 wgpu::BindingResource::Buffer(cut_mask.as_entire_buffer_binding()),
+                wgpu::BindingResource::TextureView(scene),
             ],
         )
     }
@@ -281,6 +287,7 @@ impl MarchPass {
         (width, height): (u32, u32),
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        // `width`×`height` invocations: the pixels, or the subset cells of a reprojected frame.
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("march"),
             timestamp_writes: timestamps,

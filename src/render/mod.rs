@@ -4,7 +4,8 @@
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
 //! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
 //! `march` (compute ray march into a cloud texture), `exposure` (meters the frame), `present`
-//! (sky + composite + tone map). `weather` uploads the map (`blend` a second forecast step), `frame` forms the uniforms, `camera` holds the geometry, `preset` the
+//! (sky + composite + tone map); `reproject` makes a full frame from a subset march and the
+//! last frame (the window, `flight`). `weather` uploads the map (`blend` a second forecast step), `frame` forms the uniforms, `camera` holds the geometry, `preset` the
 //! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
 
 pub mod atmosphere;
@@ -21,6 +22,7 @@ pub mod present;
 pub mod preset;
 pub mod profile;
 pub mod readback;
+pub mod reproject;
 pub mod section;
 pub mod shader;
 pub mod shadow;
@@ -100,6 +102,22 @@ pub struct Settings {
     /// How far each layer's noise has drifted with its wind since the series' reference time
     /// (east, north m; low, middle, high): zero for a plain map (crate::timeline).
     pub drift_m: [[f64; 2]; 3],
+    /// Whether a perspective frame marches a subset of its pixels and reprojects the rest from
+    /// the previous frame (render::reproject): the window and `flight`; a single picture
+    /// marches every pixel.
+    pub reprojection: Reprojection,
+}
+
+/// How frames are made from the ones before them (render::reproject).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Reprojection {
+    /// Every pixel marched, every frame.
+    #[default]
+    Off,
+    /// One pixel of each subset cell marched, the rest reprojected. Where the history does not
+    /// fit (the first frame, a teleport, a new map), `full_reset` marches every pixel that frame;
+    /// else the fresh subset, upsampled, stands in until the history fills again.
+    On { full_reset: bool },
 }
 
 /// The look's defaults, defined once: [`Settings::new`], the command line and the window's
@@ -133,6 +151,7 @@ impl Settings {
             visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
             drift_m: [[0.0; 2]; 3],
+            reprojection: Reprojection::Off,
         }
     }
 
@@ -181,6 +200,12 @@ impl Settings {
             || m.max_steps > 100_000
         {
             return bad("step growth must be ≥ 0 and max steps in 1..=100000".into());
+        }
+        if !(m.subset.is_power_of_two() && m.subset <= 8) {
+            return bad(format!(
+                "reprojection subset {} must be 1, 2, 4 or 8 pixels a side",
+                m.subset
+            ));
         }
         if m.light_steps == 0
             || m.light_steps > 16
@@ -236,50 +261,165 @@ impl Output {
     }
 }
 
-/// Everything whose lifetime is the output size: made again only when the size changes.
-struct Targets {
-    width: u32,
-    height: u32,
+/// One full-size frame's textures: what the march (or the reproject stage) writes and the
+/// exposure and present stages read.
+struct FrameSet {
+    /// Premultiplied linear cloud radiance and opacity.
     cloud: wgpu::Texture,
-    /// Headless output; made on first use.
-    color: Option<wgpu::Texture>,
+    /// The background's linear radiance and each pixel's distance (km).
+    scene: wgpu::Texture,
+    /// The march writing this set at full size (every pixel).
     march_bind: wgpu::BindGroup,
     present_bind: wgpu::BindGroup,
     exposure_bind: wgpu::BindGroup,
-    /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
-    cut_mask: wgpu::Buffer,
 }
 
-impl Targets {
-    fn new(
-        gpu: &Gpu,
-        march: &march::MarchPass,
-        present: &present::PresentPass,
-        exposure: &exposure::ExposurePass,
-        (width, height): (u32, u32),
-    ) -> Targets {
-        let cloud = texture_2d(
+impl FrameSet {
+    fn new(r: Stages<'_>, size: (u32, u32), cut_mask: &wgpu::Buffer) -> FrameSet {
+        let (cloud, scene) = frame_textures(r.gpu, size);
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (cv, sv) = (view(&cloud), view(&scene));
+        FrameSet {
+            march_bind: r.march.bind_target(r.gpu, &cv, &sv, cut_mask),
+            present_bind: r.present.bind_target(r.gpu, &cv, &sv),
+            exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
+            cloud,
+            scene,
+        }
+    }
+}
+
+/// The cloud and scene textures of one frame (or subset march) of `size`.
+fn frame_textures(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::Texture) {
+    let tex = |label| {
+        texture_2d(
             &gpu.device,
-            "cloud",
-            (width, height),
+            label,
+            size,
             march::CLOUD_FORMAT,
             wgpu::TextureUsages::STORAGE_BINDING
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-        );
-        let cloud_view = cloud.create_view(&Default::default());
-        let cut_mask = march::cut_mask_buffer(gpu, width, height);
+        )
+    };
+    (tex("cloud"), tex("scene"))
+}
+
+/// The stages that bind a frame's textures.
+#[derive(Clone, Copy)]
+struct Stages<'a> {
+    gpu: &'a Gpu,
+    march: &'a march::MarchPass,
+    present: &'a present::PresentPass,
+    exposure: &'a exposure::ExposurePass,
+    reproject: &'a reproject::ReprojectPass,
+}
+
+/// A reprojected frame's extra textures: the subset march and a second full-size frame, so
+/// each frame is made from the one before (ping-pong).
+struct History {
+    /// Subset cell side (px).
+    n: u32,
+    /// The subset march: one texel per cell.
+    fresh_march_bind: wgpu::BindGroup,
+    cells: (u32, u32),
+    /// The second full-size frame (the first is `Targets::frames[0]`).
+    other: FrameSet,
+    /// `reproject_bind[k]` writes frame k from the fresh subset and frame 1 − k.
+    reproject_bind: [wgpu::BindGroup; 2],
+    /// The frame the last reprojected frame wrote, and what it was made of.
+    shown: usize,
+    last: Option<reproject::FrameKey>,
+    /// Reprojected frames made: the subset order's position.
+    frames: u32,
+    /// Why the last frame did not use its history (`None`: it did).
+    last_reset: Option<&'static str>,
+}
+
+impl History {
+    fn new(
+        r: Stages<'_>,
+        (width, height): (u32, u32),
+        n: u32,
+        first: &FrameSet,
+        cut_mask: &wgpu::Buffer,
+    ) -> History {
+        let cells = (width.div_ceil(n), height.div_ceil(n));
+        let (fc, fs) = frame_textures(r.gpu, cells);
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let other = FrameSet::new(r, (width, height), cut_mask);
+        let fresh = [view(&fc), view(&fs)];
+        let sets = [
+            [view(&first.cloud), view(&first.scene)],
+            [view(&other.cloud), view(&other.scene)],
+        ];
+        let reproject_bind = [0, 1].map(|k| {
+            let (h, o) = (&sets[1 - k], &sets[k]);
+            r.reproject.bind_target(
+                r.gpu,
+                [&fresh[0], &fresh[1]],
+                [&h[0], &h[1]],
+                [&o[0], &o[1]],
+            )
+        });
+        History {
+            n,
+            fresh_march_bind: r.march.bind_target(r.gpu, &fresh[0], &fresh[1], cut_mask),
+            cells,
+            other,
+            reproject_bind,
+            shown: 0,
+            last: None,
+            frames: 0,
+            last_reset: Some("first frame"),
+        }
+    }
+}
+
+/// Everything whose lifetime is the output size: made again only when the size changes.
+struct Targets {
+    width: u32,
+    height: u32,
+    /// The full-size frame a frame that marches every pixel writes.
+    frame: FrameSet,
+    /// Headless output; made on first use.
+    color: Option<wgpu::Texture>,
+    /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
+    cut_mask: wgpu::Buffer,
+    /// Made on the first reprojected frame at this size.
+    history: Option<History>,
+    /// Whether the last frame was reprojected (it then shows `history`'s frame `shown`).
+    reprojected: bool,
+}
+
+impl Targets {
+    fn new(r: Stages<'_>, (width, height): (u32, u32)) -> Targets {
+        let cut_mask = march::cut_mask_buffer(r.gpu, width, height);
         Targets {
             width,
             height,
-            march_bind: march.bind_target(gpu, &cloud_view, &cut_mask),
-            present_bind: present.bind_target(gpu, &cloud_view),
-            exposure_bind: exposure.bind_target(gpu, &cloud_view),
-            cloud,
+            frame: FrameSet::new(r, (width, height), &cut_mask),
             color: None,
             cut_mask,
+            history: None,
+            reprojected: false,
         }
     }
+
+    /// The frame the last encoded frame showed.
+    fn shown(&self) -> &FrameSet {
+        match &self.history {
+            Some(h) if self.reprojected && h.shown == 1 => &h.other,
+            _ => &self.frame,
+        }
+    }
+}
+
+/// How a reprojected frame is made (`Renderer::plan_reprojection`).
+struct ReprojectionPlan {
+    /// The history does not fit and every pixel is marched.
+    full: bool,
+    params: reproject::ReprojectParams,
 }
 
 /// A single-level 2D texture.
@@ -328,6 +468,7 @@ pub struct Renderer {
     shadow: shadow::ShadowPass,
     atmosphere: atmosphere::AtmospherePass,
     exposure: exposure::ExposurePass,
+    reproject: reproject::ReprojectPass,
     /// Counts the maps set, so the shadow volume knows when its map changed.
     map_generation: u64,
     map_bind: wgpu::BindGroup,
@@ -356,6 +497,7 @@ impl Renderer {
             present::PresentPass::new(&gpu, &march.uniforms, &exposure.state, &scene_layout);
         let map_bind = march.bind_map(&gpu, &weather);
         let atmosphere = atmosphere::AtmospherePass::new(&gpu, &march.uniforms);
+        let reproject = reproject::ReprojectPass::new(&gpu, &march.uniforms);
         let mut shadow = shadow::ShadowPass::new(
             &gpu,
             &march,
@@ -377,6 +519,7 @@ impl Renderer {
             shadow,
             atmosphere,
             exposure,
+            reproject,
             map_generation: 0,
             map_bind,
             targets: None,
@@ -468,14 +611,39 @@ impl Renderer {
             self.made.targets += 1;
             self.targets = None;
         }
-        let (gpu, march, present, exposure) =
-            (&self.gpu, &self.march, &self.present, &self.exposure);
-        self.targets
-            .get_or_insert_with(|| Targets::new(gpu, march, present, exposure, (width, height)))
+        let Renderer {
+            gpu,
+            march,
+            present,
+            exposure,
+            reproject,
+            targets,
+            ..
+        } = self;
+        let stages = Stages {
+            gpu,
+            march,
+            present,
+            exposure,
+            reproject,
+        };
+        targets.get_or_insert_with(|| Targets::new(stages, (width, height)))
     }
 
-    /// Record one frame into `enc`: the march at `width`×`height`, then the present pass into
-    /// `target` (any size: the cloud image is scaled to it). Times the passes when it can.
+    /// Why the last reprojected frame did not use its history (`None`: it did, or no frame
+    /// was reprojected): "first frame", "size", "map", "time", "teleport", "settings".
+    pub fn last_reset(&self) -> Option<&'static str> {
+        self.targets
+            .as_ref()
+            .filter(|t| t.reprojected)
+            .and_then(|t| t.history.as_ref())
+            .and_then(|h| h.last_reset)
+    }
+
+    /// Record one frame into `enc`: the march at `width`×`height` (a subset of its pixels and
+    /// the rest reprojected, when the settings ask for it and the view is a perspective), then
+    /// the present pass into `target` (any size: the cloud image is scaled to it). Times the
+    /// passes when it can.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
@@ -494,9 +662,9 @@ impl Renderer {
         }
         settings.validate()?;
         self.blend_at(settings);
-        let uniforms = self.uniforms(view, (width, height, target_width), settings)?;
+        let mut uniforms = self.uniforms(view, (width, height, target_width), settings)?;
         let pipeline = self.present.prepare(&self.gpu, target_format);
-        self.targets(width, height);
+        let plan = self.plan_reprojection(view, (width, height), settings);
         let Renderer {
             gpu,
             march,
@@ -504,6 +672,7 @@ impl Renderer {
             shadow,
             atmosphere,
             exposure,
+            reproject,
             map_bind,
             targets: Some(t),
             timer,
@@ -511,7 +680,27 @@ impl Renderer {
             ..
         } = self
         else {
-            unreachable!("targets were just made");
+            unreachable!("targets were made by plan_reprojection");
+        };
+        // Which frame set this frame writes, and how its march is dispatched.
+        let (set, march_bind, dispatch, reproject_step) = match (&plan, t.history.as_ref()) {
+            (Some(p), Some(h)) if !p.full => {
+                let k = 1 - h.shown;
+                let [ox, oy] = reproject::subset_offset(h.n, h.frames);
+                uniforms.subset_n = h.n as f32;
+                uniforms.subset_offset = [ox as f32, oy as f32];
+                (k, &h.fresh_march_bind, h.cells, Some((k, p.params)))
+            }
+            (Some(_), Some(h)) => {
+                let k = 1 - h.shown;
+                let bind = if k == 0 {
+                    &t.frame.march_bind
+                } else {
+                    &h.other.march_bind
+                };
+                (k, bind, (width, height), None)
+            }
+            _ => (0, &t.frame.march_bind, (width, height), None),
         };
         gpu.queue
             .write_buffer(&march.uniforms, 0, bytemuck::bytes_of(&uniforms));
@@ -536,25 +725,48 @@ impl Renderer {
         );
         enc.clear_buffer(&t.cut_mask, 0, None);
         let timer = timer.as_ref();
+        let split = reproject_step.is_some();
         march.encode(
             enc,
             map_bind,
-            &t.march_bind,
+            march_bind,
             shadow.scene_bind(),
-            (width, height),
-            timer.map(|q| q.compute_writes()),
+            dispatch,
+            timer.map(|q| {
+                if split {
+                    q.compute_start()
+                } else {
+                    q.compute_writes()
+                }
+            }),
         );
+        if let (Some((k, params)), Some(h)) = (reproject_step, t.history.as_ref()) {
+            reproject.encode(
+                gpu,
+                enc,
+                &params,
+                &h.reproject_bind[k],
+                (width, height),
+                timer.map(|q| q.compute_end()),
+            );
+        }
+        t.reprojected = plan.is_some();
+        if let Some(h) = t.history.as_mut().filter(|_| plan.is_some()) {
+            h.shown = set;
+            h.frames = h.frames.wrapping_add(1);
+        }
+        let shown = t.shown();
         let params = exposure::ExposureParams {
             ev_mul: 2f64.powf(settings.exposure_ev) as f32,
             rate: settings.exposure_rate,
             auto_on: u32::from(settings.exposure_auto),
             _pad: 0,
         };
-        exposure.encode(gpu, enc, &params, &t.exposure_bind, shadow.scene_bind());
+        exposure.encode(gpu, enc, &params, &shown.exposure_bind, shadow.scene_bind());
         present.encode(
             enc,
             pipeline,
-            &t.present_bind,
+            &shown.present_bind,
             shadow.scene_bind(),
             target,
             timer.map(|q| q.render_writes()),
@@ -563,6 +775,73 @@ impl Renderer {
             q.resolve(enc);
         }
         Ok(())
+    }
+
+    /// Make the targets for this frame and decide how it is made: `None` marches every pixel;
+    /// else a reprojected frame, `full` when its history does not fit and the settings ask
+    /// for a full march then. Records the frame as the next one's history.
+    fn plan_reprojection(
+        &mut self,
+        view: &View,
+        size: (u32, u32),
+        settings: &Settings,
+    ) -> Option<ReprojectionPlan> {
+        let generation = self.map_generation;
+        self.targets(size.0, size.1);
+        let Renderer {
+            gpu,
+            march,
+            present,
+            exposure,
+            reproject,
+            targets: Some(t),
+            ..
+        } = self
+        else {
+            unreachable!("targets were just made");
+        };
+        let n = settings.march.subset;
+        let (Reprojection::On { full_reset }, View::Perspective(camera)) =
+            (settings.reprojection, view)
+        else {
+            if let Some(h) = t.history.as_mut() {
+                h.last = None;
+            }
+            return None;
+        };
+        if n <= 1 {
+            return None;
+        }
+        if t.history.as_ref().is_none_or(|h| h.n != n) {
+            let stages = Stages {
+                gpu,
+                march,
+                present,
+                exposure,
+                reproject,
+            };
+            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
+        }
+        let h = t.history.as_mut()?;
+        let now = reproject::FrameKey {
+            camera: *camera,
+            size,
+            subset: n,
+            map_generation: generation,
+            time: settings.time,
+            settings: settings.clone(),
+        };
+        let misfit = match &h.last {
+            None => Some("first frame"),
+            Some(last) => reproject::misfit(last, &now),
+        };
+        let params = reproject::params(h.last.as_ref(), camera, misfit.is_none());
+        h.last_reset = misfit;
+        h.last = Some(now);
+        Some(ReprojectionPlan {
+            full: misfit.is_some() && full_reset,
+            params,
+        })
     }
 
     /// The cloud's extinction (1/m) on a vertical curtain: one image column over each unit
@@ -750,20 +1029,21 @@ impl Renderer {
         let start = Instant::now();
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         // The headless target lives with the cloud texture (same size).
-        let (color, cloud_tex, cut_mask) = {
+        let color = {
             let dev = self.gpu.device.clone();
             let t = self.targets(width, height);
             let size = (t.width, t.height);
-            let color = t.color.get_or_insert_with(|| {
-                texture_2d(
-                    &dev,
-                    "frame",
-                    size,
-                    HEADLESS_FORMAT,
-                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                )
-            });
-            (color.clone(), t.cloud.clone(), t.cut_mask.clone())
+            t.color
+                .get_or_insert_with(|| {
+                    texture_2d(
+                        &dev,
+                        "frame",
+                        size,
+                        HEADLESS_FORMAT,
+                        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    )
+                })
+                .clone()
         };
         let color_view = color.create_view(&Default::default());
         self.encode(
@@ -776,6 +1056,18 @@ impl Renderer {
             HEADLESS_FORMAT,
             width,
         )?;
+        let (cloud_tex, cut_mask, subset) = {
+            let t = self
+                .targets
+                .as_ref()
+                .ok_or(RenderError::Readback("no frame".into()))?;
+            let marched_all = !t.reprojected
+                || t.history.as_ref().is_some_and(|h| {
+                    h.last_reset.is_some()
+                        && matches!(settings.reprojection, Reprojection::On { full_reset: true })
+                });
+            (t.shown().cloud.clone(), t.cut_mask.clone(), !marched_all)
+        };
         let gpu = &self.gpu;
         let rb_color = readback::Pending::texture(gpu, &mut enc, &color, 4);
         let rb_cloud = readback::Pending::texture(gpu, &mut enc, &cloud_tex, 8);
@@ -796,7 +1088,8 @@ impl Renderer {
             present_ms,
         } = self.read_stats()?;
         let mut cut = Vec::new();
-        if stats.cut_rays > 0 {
+        // A subset march's cut rays are counted, not mapped to pixels.
+        if stats.cut_rays > 0 && !subset {
             tracing::warn!(
                 "{} of {} rays were stopped by the driver before their march ended (a CPU driver's cap on shader loop iterations): the frame is incomplete where rays are longest",
                 stats.cut_rays,

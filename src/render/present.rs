@@ -1,8 +1,8 @@
 //! Present stage: a full-screen triangle (shaders/present.wgsl) that composites the cloud
-//! texture over sky, Sun, Moon, stars and ground, and tone-maps into the target format.
+//! texture over the background the march found (sky, Sun, Moon, stars, ground), upsampling
+//! edge-aware where the march was smaller, and tone-maps into the target format.
 
 use super::contract::{self, Binding, Resource};
-use super::frame::FrameUniforms;
 use super::gpu::Gpu;
 use super::march::bind;
 use super::shader;
@@ -11,10 +11,16 @@ use super::shadow::{SCENE_BINDINGS, SCENE_GROUP};
 /// present.wgsl's own bindings: the frame uniforms (the device's lifetime), the march's cloud
 /// texture (the output size's) and the exposure stage's result (the device's).
 pub const BINDINGS: &[Binding] = &[
-    contract::uniform::<FrameUniforms>(0, 0),
+    contract::frame(0, 0),
     Binding {
         group: 1,
         binding: 0,
+        resource: Resource::Texture2d { filterable: true },
+    },
+    // The background behind the cloud and each pixel's distance (the march's scene texture).
+    Binding {
+        group: 1,
+        binding: 1,
         resource: Resource::Texture2d { filterable: true },
     },
     Binding {
@@ -136,13 +142,22 @@ impl PresentPass {
         PipelineId(self.pipelines.len() - 1)
     }
 
-    /// The cloud texture's bind group: made again only when the output size changes.
-    pub fn bind_target(&self, gpu: &Gpu, cloud: &wgpu::TextureView) -> wgpu::BindGroup {
+    /// The frame's bind group (cloud and scene textures): made again only when the output
+    /// size changes.
+    pub fn bind_target(
+        &self,
+        gpu: &Gpu,
+        cloud: &wgpu::TextureView,
+        scene: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
         bind(
             &gpu.device,
             "present: target",
             &self.layouts[1],
-            [wgpu::BindingResource::TextureView(cloud)],
+            [
+                wgpu::BindingResource::TextureView(cloud),
+                wgpu::BindingResource::TextureView(scene),
+            ],
         )
     }
 

@@ -60,6 +60,7 @@ impl Preset {
                 column_light: true,
                 terrain: true,
                 aerial: true,
+                subset: 4,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -74,6 +75,7 @@ impl Preset {
                 column_light: true,
                 terrain: true,
                 aerial: true,
+                subset: 4,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -88,6 +90,7 @@ impl Preset {
                 column_light: true,
                 terrain: true,
                 aerial: true,
+                subset: 2,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -102,6 +105,7 @@ impl Preset {
                 column_light: true,
                 terrain: true,
                 aerial: true,
+                subset: 1,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -169,6 +173,10 @@ pub struct MarchParams {
     /// The clear air's light and extinction in front of ground and cloud (the atmosphere's
     /// aerial-perspective table); else only the visibility's haze.
     pub aerial: bool,
+    /// Side of the reprojection's subset cell (px): a reprojected frame (the window, `flight`)
+    /// marches one pixel of each `subset`×`subset` cell and reprojects the rest
+    /// (render::reproject); 1 marches every pixel. A power of two, at most 8.
+    pub subset: u32,
     pub shortcuts: Shortcuts,
 }
 

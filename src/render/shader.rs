@@ -31,6 +31,10 @@ pub const SECTION: &str = concat!(
     include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/section.wgsl")
 );
+pub const REPROJECT: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/reproject.wgsl")
+);
 pub const PRESENT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
@@ -58,6 +62,7 @@ mod tests {
             ("present", PRESENT),
             ("shadow", SHADOW),
             ("exposure", EXPOSURE),
+            ("reproject", REPROJECT),
             ("atmosphere", ATMOSPHERE),
         ] {
             let module = naga::front::wgsl::parse_str(src)

@@ -97,6 +97,25 @@ impl PassTimer {
         }
     }
 
+    /// The compute span split over two passes: its start written by the first (the march),
+    /// its end by the second (the reproject stage), so a reprojected frame's march time
+    /// includes its reprojection.
+    pub fn compute_start(&self) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: None,
+        }
+    }
+
+    pub fn compute_end(&self) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: None,
+            end_of_pass_write_index: Some(1),
+        }
+    }
+
     pub fn render_writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
         wgpu::RenderPassTimestampWrites {
             query_set: &self.set,

@@ -1,0 +1,137 @@
+// Reproject stage: builds the full-resolution frame from this frame's subset march (one pixel
+// of each n×n cell, render::reproject) and the previous full-resolution frame moved by the
+// camera's motion and each pixel's distance (DESIGN §4b, as in Guerrilla's Nubis). History that
+// no longer fits is rejected and the fresh subset, upsampled, stands in for it.
+
+@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
+@group(0) @binding(1) var<uniform> rp: Reproject;
+@group(0) @binding(2) var lin: sampler;
+// This frame's subset march: one texel per cell (march.wgsl's cloud and scene).
+@group(1) @binding(0) var fresh_cloud: texture_2d<f32>;
+@group(1) @binding(1) var fresh_scene: texture_2d<f32>;
+// The previous full-resolution frame.
+@group(1) @binding(2) var hist_cloud: texture_2d<f32>;
+@group(1) @binding(3) var hist_scene: texture_2d<f32>;
+@group(1) @binding(4) var out_cloud: texture_storage_2d<rgba16float, write>;
+@group(1) @binding(5) var out_scene: texture_storage_2d<rgba16float, write>;
+
+// The previous frame's camera (render::reproject::ReprojectParams).
+struct Reproject {
+    prev_fwd: vec3<f32>,
+    prev_tan_half_fov: f32,
+    prev_right: vec3<f32>,
+    prev_aspect: f32,
+    prev_view_up: vec3<f32>,
+    valid: u32,                 // 0: no usable history (first frame, a teleport, a new map)
+    prev_delta: vec3<f32>,      // previous camera position − this one (ECEF m)
+    max_depth_change: f32,      // relative change of a pixel's distance that rejects its history
+};
+
+// Moved by less than this (px) since the last frame, a pixel keeps its history unclamped.
+const STILL_PX: f32 = 0.25;
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let size = vec2<u32>(f.out_size);
+    if (any(id.xy >= size)) {
+        return;
+    }
+    let n = max(u32(f.subset_n), 1u);
+    let off = vec2<u32>(f.subset_offset);
+    let cells = vec2<i32>(textureDimensions(fresh_cloud));
+    let p = vec2<i32>(id.xy);
+    let cell = p / i32(n);
+    let own = min(vec2<u32>(cell) * n + off, size - 1u);
+    if (all(own == id.xy)) {
+        // Marched this frame.
+        textureStore(out_cloud, p, textureLoad(fresh_cloud, cell, 0));
+        textureStore(out_scene, p, textureLoad(fresh_scene, cell, 0));
+        return;
+    }
+    // Where the pixel sits among the fresh samples (sample c stands at pixel c·n + off).
+    let q = (vec2<f32>(p) - vec2<f32>(off)) / f32(n);
+    let c0 = vec2<i32>(floor(q));
+    let fr = q - floor(q);
+    let nearest = clamp(vec2<i32>(round(q)), vec2<i32>(0), cells - 1);
+    let near_scene = textureLoad(fresh_scene, nearest, 0);
+    let near_a = textureLoad(fresh_cloud, nearest, 0).a;
+    // The fresh samples' bilinear footprint: their range bounds the history (no ghosts: where
+    // the march now finds clear air around a pixel, no history keeps cloud there), and their
+    // edge-aware mean stands in where there is no history.
+    var lo_c = vec4<f32>(1e30);
+    var hi_c = vec4<f32>(-1e30);
+    var lo_s = vec3<f32>(1e30);
+    var hi_s = vec3<f32>(-1e30);
+    var up_c = vec4<f32>(0.0);
+    var up_s = vec3<f32>(0.0);
+    var wsum = 0.0;
+    for (var j = 0; j < 2; j++) {
+        for (var i = 0; i < 2; i++) {
+            let at = clamp(c0 + vec2<i32>(i, j), vec2<i32>(0), cells - 1);
+            let c = textureLoad(fresh_cloud, at, 0);
+            let s = textureLoad(fresh_scene, at, 0);
+            lo_c = min(lo_c, c);
+            hi_c = max(hi_c, c);
+            lo_s = min(lo_s, s.rgb);
+            hi_s = max(hi_s, s.rgb);
+            let far = max(max(s.a, near_scene.a), 1e-3);
+            let dd = select(abs(s.a - near_scene.a) / far, 1.0, (s.a > 0.0) != (near_scene.a > 0.0));
+            let w = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1)
+                / (1.0 + 16.0 * abs(c.a - near_a) + 8.0 * dd) + 1e-4;
+            up_c += w * c;
+            up_s += w * s.rgb;
+            wsum += w;
+        }
+    }
+    up_c /= wsum;
+    up_s /= wsum;
+    var out_c = up_c;
+    var out_s = vec4<f32>(up_s, near_scene.a);
+    if (rp.valid != 0u) {
+        // The point this pixel shows, at the distance of the fresh sample nearest to it (sky:
+        // a direction, infinitely far), seen from the previous camera.
+        let d = persp_dir(f, vec2<f32>(p) + 0.5);
+        var v = d;
+        var expect_km = 0.0;
+        if (near_scene.a > 0.0) {
+            let w = d * (near_scene.a * 1000.0) - rp.prev_delta;
+            expect_km = length(w) * 1e-3;
+            v = normalize(w);
+        }
+        let z = dot(v, rp.prev_fwd);
+        if (z > 1e-4) {
+            let x = dot(v, rp.prev_right) / z / (rp.prev_tan_half_fov * rp.prev_aspect);
+            let y = dot(v, rp.prev_view_up) / z / rp.prev_tan_half_fov;
+            let uv = vec2<f32>(x + 1.0, 1.0 - y) * 0.5;
+            let inside = all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0));
+            let moved = length(uv * f.out_size - (vec2<f32>(p) + 0.5));
+            if (inside && moved < STILL_PX) {
+                // Where the pixel has not moved its history is its own earlier march, exact:
+                // kept whole, so a still view gathers every pixel of the cell in n² frames.
+                out_c = textureLoad(hist_cloud, p, 0);
+                out_s = textureLoad(hist_scene, p, 0);
+            } else if (inside) {
+                let hp = clamp(vec2<i32>(floor(uv * f.out_size)), vec2<i32>(0), vec2<i32>(size) - 1);
+                let hd = textureLoad(hist_scene, hp, 0).a;
+                // The history's own point, seen from this camera: its distance now.
+                var carried = 0.0;
+                if (hd > 0.0) {
+                    let pd = normalize(rp.prev_fwd + rp.prev_right * (x * rp.prev_tan_half_fov * rp.prev_aspect)
+                        + rp.prev_view_up * (y * rp.prev_tan_half_fov));
+                    carried = length(pd * (hd * 1000.0) + rp.prev_delta) * 1e-3;
+                }
+                // Disocclusion or a large change of distance: the history shows something else.
+                let same_kind = (hd > 0.0) == (expect_km > 0.0);
+                let change = abs(hd - expect_km) / max(max(hd, expect_km), 1e-3);
+                if (same_kind && change <= rp.max_depth_change) {
+                    let hc = textureSampleLevel(hist_cloud, lin, uv, 0.0);
+                    let hs = textureSampleLevel(hist_scene, lin, uv, 0.0);
+                    out_c = clamp(hc, lo_c, hi_c);
+                    out_s = vec4<f32>(clamp(hs.rgb, lo_s, hi_s), carried);
+                }
+            }
+        }
+    }
+    textureStore(out_cloud, p, out_c);
+    textureStore(out_scene, p, out_s);
+}

@@ -1,0 +1,345 @@
+//! Reproject stage: dispatches shaders/reproject.wgsl, which makes a full-resolution frame from
+//! this frame's subset march (one pixel of each n×n cell) and the previous frame moved by the
+//! camera's motion and each pixel's distance (DESIGN §4b; Guerrilla's Nubis marches 1/16 of the
+//! pixels a frame). Owns the subset order and the rules for when the history no longer fits:
+//! a new size or map, a teleport, a jump in time, a changed look.
+
+use chrono::{DateTime, Utc};
+use glam::DVec3;
+
+use super::camera::Camera;
+use super::contract::{self, Binding, Resource};
+use super::gpu::Gpu;
+use super::march::{bind, CLOUD_FORMAT};
+use super::{shader, Settings};
+
+crate::gpu_struct! {
+    /// The previous frame's camera (`Reproject` in shaders/reproject.wgsl).
+    pub struct ReprojectParams as "Reproject" {
+        pub prev_fwd: [f32; 3],
+        pub prev_tan_half_fov: f32,
+        pub prev_right: [f32; 3],
+        pub prev_aspect: f32,
+        pub prev_view_up: [f32; 3],
+        /// 0: no usable history; every pixel not marched is the fresh subset upsampled.
+        pub valid: u32,
+        /// The previous camera's position less this one's (ECEF m).
+        pub prev_delta: [f32; 3],
+        /// Relative change of a pixel's distance beyond which its history is rejected.
+        pub max_depth_change: f32,
+    }
+}
+
+/// Relative change of distance that rejects a pixel's history: the opacity-weighted distance
+/// of a cloud moves a little as noise crosses the ray; an occluder moving in or out changes it
+/// by far more.
+pub const MAX_DEPTH_CHANGE: f32 = 0.3;
+/// Farther than this between two frames is a teleport (m): a jet at Mach 2 covers 700 m a
+/// frame at 1 fps.
+pub const TELEPORT_M: f64 = 2_000.0;
+/// Turning more than this between two frames (degrees) leaves little history on screen.
+pub const TELEPORT_TURN_DEG: f64 = 30.0;
+/// A larger jump of the scene's time (s) than this starts afresh: at ×600 the window moves
+/// 600 s a second of wall time, at most 1 s a frame (app::moment), so flying with time running
+/// keeps its history.
+pub const TIME_JUMP_S: i64 = 900;
+
+/// Every binding of reproject.wgsl.
+pub const BINDINGS: &[Binding] = &[
+    contract::frame(0, 0),
+    contract::uniform::<ReprojectParams>(0, 1),
+    b(0, 2, Resource::Sampler),
+    b(1, 0, Resource::Texture2d { filterable: true }),
+    b(1, 1, Resource::Texture2d { filterable: true }),
+    b(1, 2, Resource::Texture2d { filterable: true }),
+    b(1, 3, Resource::Texture2d { filterable: true }),
+    b(1, 4, Resource::StorageTexture(CLOUD_FORMAT, 2)),
+    b(1, 5, Resource::StorageTexture(CLOUD_FORMAT, 2)),
+];
+
+const fn b(group: u32, binding: u32, resource: Resource) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource,
+    }
+}
+
+/// Which pixel of an `n`×`n` cell the `k`-th frame marches: the cells' pixels in the order of
+/// a Bayer matrix, so each frame's pixels fall far from the last few frames' and every pixel
+/// is marched once in n² frames.
+pub fn subset_offset(n: u32, k: u32) -> [u32; 2] {
+    let n = n.max(1);
+    let want = k % (n * n);
+    for y in 0..n {
+        for x in 0..n {
+            if bayer(x, y, n) == want {
+                return [x, y];
+            }
+        }
+    }
+    [0, 0]
+}
+
+/// Rank of (x, y) in the n×n Bayer matrix (n a power of two): M₂ = [0 2; 3 1] and
+/// M₂ₙ(x, y) = 4·M₂(x mod 2, y mod 2) + Mₙ(x div 2, y div 2), so consecutive ranks differ in
+/// the coarse position and lie far apart.
+fn bayer(x: u32, y: u32, n: u32) -> u32 {
+    let m = n.trailing_zeros();
+    (0..m)
+        .map(|l| {
+            let d = [[0, 2], [3, 1]][((y >> l) & 1) as usize][((x >> l) & 1) as usize];
+            d * 4u32.pow(m - 1 - l)
+        })
+        .sum()
+}
+
+/// What a reprojected frame was made of: what the next frame moves its pixels by and checks
+/// its history against.
+#[derive(Clone, Debug)]
+pub struct FrameKey {
+    pub camera: Camera,
+    pub size: (u32, u32),
+    pub subset: u32,
+    pub map_generation: u64,
+    pub time: DateTime<Utc>,
+    pub settings: Settings,
+}
+
+/// Why the history does not fit the frame, or `None` when it does.
+pub fn misfit(last: &FrameKey, now: &FrameKey) -> Option<&'static str> {
+    if last.size != now.size || last.subset != now.subset {
+        return Some("size");
+    }
+    if last.map_generation != now.map_generation {
+        return Some("map");
+    }
+    if (now.time - last.time).num_seconds().abs() > TIME_JUMP_S {
+        return Some("time");
+    }
+    let (a, b) = (last.camera.basis(), now.camera.basis());
+    let turn = a
+        .forward
+        .dot(b.forward)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    if a.position.distance(b.position) > TELEPORT_M
+        || turn > TELEPORT_TURN_DEG
+        || (last.camera.fov_deg - now.camera.fov_deg).abs() > 1e-6
+    {
+        return Some("teleport");
+    }
+    if looks_differ(&last.settings, &now.settings) {
+        return Some("settings");
+    }
+    None
+}
+
+/// Whether two settings draw different clouds or light (time, drift, frame and exposure aside:
+/// those move smoothly, and the exposure is applied after reprojection).
+fn looks_differ(a: &Settings, b: &Settings) -> bool {
+    a.march != b.march
+        || a.layers_on != b.layers_on
+        || a.coverage_mul != b.coverage_mul
+        || a.density_mul != b.density_mul
+        || a.extinction != b.extinction
+        || a.hg_g != b.hg_g
+        || a.beer_clamp != b.beer_clamp
+        || a.visibility_m != b.visibility_m
+        || a.sun_override != b.sun_override
+}
+
+/// The uniforms that move the last frame's pixels to this camera.
+pub fn params(last: Option<&FrameKey>, now: &Camera, valid: bool) -> ReprojectParams {
+    let Some(last) = last.filter(|_| valid) else {
+        return ReprojectParams::default();
+    };
+    let (a, b) = (last.camera.basis(), now.basis());
+    let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32];
+    ReprojectParams {
+        prev_fwd: v(a.forward),
+        prev_tan_half_fov: (last.camera.fov_deg.to_radians() * 0.5).tan() as f32,
+        prev_right: v(a.right),
+        prev_aspect: (last.size.0 as f64 / last.size.1 as f64) as f32,
+        prev_view_up: v(a.view_up),
+        valid: 1,
+        prev_delta: v(a.position - b.position),
+        max_depth_change: MAX_DEPTH_CHANGE,
+    }
+}
+
+/// The stage's pipeline and its device-lifetime bindings.
+pub struct ReprojectPass {
+    pipeline: wgpu::ComputePipeline,
+    target_layout: wgpu::BindGroupLayout,
+    device_bind: wgpu::BindGroup,
+    params: wgpu::Buffer,
+}
+
+impl ReprojectPass {
+    pub fn new(gpu: &Gpu, uniforms: &wgpu::Buffer) -> ReprojectPass {
+        let dev = &gpu.device;
+        let stage = wgpu::ShaderStages::COMPUTE;
+        let layouts = [0, 1].map(|g| contract::layout(dev, "reproject", BINDINGS, g, stage));
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("reproject"),
+            bind_group_layouts: &[Some(&layouts[0]), Some(&layouts[1])],
+            immediate_size: 0,
+        });
+        let module = shader::module(dev, "reproject", shader::REPROJECT);
+        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("reproject"),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let params = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("reproject params"),
+            size: std::mem::size_of::<ReprojectParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("history"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        use wgpu::BindingResource as R;
+        let device_bind = bind(
+            dev,
+            "reproject: device",
+            &layouts[0],
+            [
+                R::Buffer(uniforms.as_entire_buffer_binding()),
+                R::Buffer(params.as_entire_buffer_binding()),
+                R::Sampler(&sampler),
+            ],
+        );
+        let [_, target_layout] = layouts;
+        ReprojectPass {
+            pipeline,
+            target_layout,
+            device_bind,
+            params,
+        }
+    }
+
+    /// The bindings that make one history set from the fresh subset and the other set.
+    pub fn bind_target(
+        &self,
+        gpu: &Gpu,
+        fresh: [&wgpu::TextureView; 2],
+        history: [&wgpu::TextureView; 2],
+        out: [&wgpu::TextureView; 2],
+    ) -> wgpu::BindGroup {
+        use wgpu::BindingResource as R;
+        bind(
+            &gpu.device,
+            "reproject: target",
+            &self.target_layout,
+            [
+                R::TextureView(fresh[0]),
+                R::TextureView(fresh[1]),
+                R::TextureView(history[0]),
+                R::TextureView(history[1]),
+                R::TextureView(out[0]),
+                R::TextureView(out[1]),
+            ],
+        )
+    }
+
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        params: &ReprojectParams,
+        target_bind: &wgpu::BindGroup,
+        (width, height): (u32, u32),
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("reproject"),
+            timestamp_writes: timestamps,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.device_bind, &[]);
+        pass.set_bind_group(1, target_bind, &[]);
+        pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_pixel_of_a_cell_is_marched_once_in_n_squared_frames() {
+        for n in [1, 2, 4, 8] {
+            let mut seen = vec![false; (n * n) as usize];
+            for k in 0..n * n {
+                let [x, y] = subset_offset(n, k);
+                assert!(x < n && y < n);
+                let i = (y * n + x) as usize;
+                assert!(!seen[i], "n {n}: ({x}, {y}) twice");
+                seen[i] = true;
+            }
+        }
+        // Consecutive frames spread over the cell rather than walking along a row.
+        let a = subset_offset(4, 0);
+        let b = subset_offset(4, 1);
+        let d = (a[0] as i32 - b[0] as i32).abs() + (a[1] as i32 - b[1] as i32).abs();
+        assert!(d >= 2, "{a:?} then {b:?}");
+    }
+
+    fn key(lat: f64, heading: f64) -> FrameKey {
+        FrameKey {
+            camera: Camera::new(lat, 100.0, 5000.0, heading, 0.0),
+            size: (64, 36),
+            subset: 4,
+            map_generation: 1,
+            time: DateTime::<Utc>::default(),
+            settings: Settings::new(super::super::Preset::Balanced, DateTime::<Utc>::default()),
+        }
+    }
+
+    #[test]
+    fn history_is_rejected_for_each_reason() {
+        let a = key(30.0, 0.0);
+        assert_eq!(misfit(&a, &a), None);
+        let mut b = a.clone();
+        b.camera = Camera::new(30.005, 100.0, 5000.0, 1.0, 0.0);
+        assert_eq!(
+            misfit(&a, &b),
+            None,
+            "a small step and turn keep the history"
+        );
+        assert_eq!(misfit(&a, &key(31.0, 0.0)), Some("teleport"));
+        assert_eq!(misfit(&a, &key(30.0, 45.0)), Some("teleport"));
+        let mut c = a.clone();
+        c.map_generation = 2;
+        assert_eq!(misfit(&a, &c), Some("map"));
+        let mut d = a.clone();
+        d.time = a.time + chrono::Duration::hours(1);
+        assert_eq!(misfit(&a, &d), Some("time"));
+        let mut e = a.clone();
+        e.settings.coverage_mul = 1.5;
+        assert_eq!(misfit(&a, &e), Some("settings"));
+        let mut f = a.clone();
+        f.size = (128, 72);
+        assert_eq!(misfit(&a, &f), Some("size"));
+        let mut g = a.clone();
+        g.settings.frame_index = 7;
+        g.settings.exposure_ev = 1.0;
+        assert_eq!(
+            misfit(&a, &g),
+            None,
+            "frame index and exposure do not count"
+        );
+    }
+}
