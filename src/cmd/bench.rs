@@ -90,14 +90,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     )?;
     pb.finish_and_clear();
     if let Some(c) = &a.chart {
-        let img = bench::chart(&rows);
-        write_png(
-            c,
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )?;
+        write_chart(c, &bench::chart(&rows))?;
     }
     if a.json {
         out!("{}", serde_json::to_string_pretty(&rows)?)?;
@@ -157,19 +150,23 @@ fn reprojection(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
     })?;
     pb.finish_and_clear();
     if let Some(c) = &a.chart {
-        let img = chart(&rows, 0.0125);
-        write_png(
-            c,
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )?;
+        write_chart(c, &chart(&rows, 0.0125))?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        out!("{}", serde_json::to_string_pretty(&rows)?)?;
     } else {
-        print!("{}", table(&rows));
+        out!("{}", table(&rows).trim_end())?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+fn write_chart(path: &std::path::Path, img: &image::RgbImage) -> anyhow::Result<()> {
+    write_png(
+        path,
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::Rgb8,
+    )?;
+    Ok(())
 }

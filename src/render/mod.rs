@@ -611,6 +611,12 @@ impl Renderer {
             self.made.targets += 1;
             self.targets = None;
         }
+        let (stages, targets) = self.split();
+        targets.get_or_insert_with(|| Targets::new(stages, (width, height)))
+    }
+
+    /// The stages that bind frame textures, beside the targets they bind.
+    fn split(&mut self) -> (Stages<'_>, &mut Option<Targets>) {
         let Renderer {
             gpu,
             march,
@@ -627,7 +633,7 @@ impl Renderer {
             exposure,
             reproject,
         };
-        targets.get_or_insert_with(|| Targets::new(stages, (width, height)))
+        (stages, targets)
     }
 
     /// Why the last reprojected frame did not use its history (`None`: it did, or no frame
@@ -788,18 +794,8 @@ impl Renderer {
     ) -> Option<ReprojectionPlan> {
         let generation = self.map_generation;
         self.targets(size.0, size.1);
-        let Renderer {
-            gpu,
-            march,
-            present,
-            exposure,
-            reproject,
-            targets: Some(t),
-            ..
-        } = self
-        else {
-            unreachable!("targets were just made");
-        };
+        let (stages, targets) = self.split();
+        let t = targets.as_mut()?;
         let n = settings.march.subset;
         let (Reprojection::On { full_reset }, View::Perspective(camera)) =
             (settings.reprojection, view)
@@ -813,13 +809,6 @@ impl Renderer {
             return None;
         }
         if t.history.as_ref().is_none_or(|h| h.n != n) {
-            let stages = Stages {
-                gpu,
-                march,
-                present,
-                exposure,
-                reproject,
-            };
             t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
         }
         let h = t.history.as_mut()?;
