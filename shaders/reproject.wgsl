@@ -1,7 +1,8 @@
 // Reproject stage: builds the full-resolution frame from this frame's subset march (one pixel
 // of each n×n cell, render::reproject) and the previous full-resolution frame moved by the
 // camera's motion and each pixel's distance (DESIGN §4b, as in Guerrilla's Nubis). History that
-// no longer fits is rejected and the fresh subset, upsampled, stands in for it.
+// no longer fits (off the last frame, disoccluded, a large change of distance, past the
+// region's edge) is rejected and the fresh subset, upsampled, stands in for it.
 
 @group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(0) @binding(1) var<uniform> rp: Reproject;
@@ -123,7 +124,14 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 // Disocclusion or a large change of distance: the history shows something else.
                 let same_kind = (hd > 0.0) == (expect_km > 0.0);
                 let change = abs(hd - expect_km) / max(max(hd, expect_km), 1e-3);
-                if (same_kind && change <= rp.max_depth_change) {
+                // Past the region's edge there is no cloud to keep: a point the pixel shows
+                // outside the map takes the fresh samples.
+                var in_region = true;
+                if (expect_km > 0.0) {
+                    let at = f.cam_up * (EARTH_R + f.cam_alt_m) + d * (near_scene.a * 1000.0);
+                    in_region = region_uv(f, lat_lon(at)).x >= 0.0;
+                }
+                if (same_kind && in_region && change <= rp.max_depth_change) {
                     let hc = textureSampleLevel(hist_cloud, lin, uv, 0.0);
                     let hs = textureSampleLevel(hist_scene, lin, uv, 0.0);
                     out_c = clamp(hc, lo_c, hi_c);
