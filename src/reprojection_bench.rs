@@ -175,7 +175,7 @@ pub fn chart(rows: &[Row], y_max: f64) -> image::RgbImage {
     img
 }
 
-/// The scene time every flight is flown at.
-pub fn noon_of(path: &FlightPath) -> Option<DateTime<Utc>> {
+/// The scene time the path keys at its start (every flight is flown at it).
+pub fn path_time(path: &FlightPath) -> Option<DateTime<Utc>> {
     path.at(0.0).1
 }

@@ -103,14 +103,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 
 /// `bench --reprojection`: the reprojection's error along three flights.
 fn reprojection(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
-    use stratus::reprojection_bench::{along, chart, measure, noon_of, table, Flight};
+    use stratus::reprojection_bench::{along, chart, measure, path_time, table, Flight};
     let map_path = a
         .map
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("--reprojection needs --map"))?;
     let map = CloudMap::load(map_path)?;
     let path = stratus::flight::FlightPath::load(&a.path)?;
-    let time = noon_of(&path)
+    let time = path_time(&path)
         .or(map.meta.source.valid_time)
         .ok_or_else(|| anyhow::anyhow!("neither the path nor the map gives a time"))?;
     let mut s = stratus::render::Settings::new(a.preset, time);

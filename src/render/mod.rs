@@ -323,7 +323,7 @@ struct History {
     /// The subset march: one texel per cell.
     fresh_march_bind: wgpu::BindGroup,
     cells: (u32, u32),
-    /// The second full-size frame (the first is `Targets::frames[0]`).
+    /// The second full-size frame (the first is `Targets::frame`).
     other: FrameSet,
     /// `reproject_bind[k]` writes frame k from the fresh subset and frame 1 − k.
     reproject_bind: [wgpu::BindGroup; 2],
@@ -390,6 +390,8 @@ struct Targets {
     history: Option<History>,
     /// Whether the last frame was reprojected (it then shows `history`'s frame `shown`).
     reprojected: bool,
+    /// Whether the last frame marched a subset of its pixels (its cut mask is per cell).
+    subset_marched: bool,
 }
 
 impl Targets {
@@ -403,6 +405,7 @@ impl Targets {
             cut_mask,
             history: None,
             reprojected: false,
+            subset_marched: false,
         }
     }
 
@@ -757,6 +760,7 @@ impl Renderer {
             );
         }
         t.reprojected = plan.is_some();
+        t.subset_marched = split;
         if let Some(h) = t.history.as_mut().filter(|_| plan.is_some()) {
             h.shown = set;
             h.frames = h.frames.wrapping_add(1);
@@ -797,17 +801,15 @@ impl Renderer {
         let (stages, targets) = self.split();
         let t = targets.as_mut()?;
         let n = settings.march.subset;
-        let (Reprojection::On { full_reset }, View::Perspective(camera)) =
-            (settings.reprojection, view)
+        let (Reprojection::On { full_reset }, View::Perspective(camera), true) =
+            (settings.reprojection, view, n > 1)
         else {
+            // This frame writes the first frame set: the history's next frame starts afresh.
             if let Some(h) = t.history.as_mut() {
                 h.last = None;
             }
             return None;
         };
-        if n <= 1 {
-            return None;
-        }
         if t.history.as_ref().is_none_or(|h| h.n != n) {
             t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
         }
@@ -1050,12 +1052,11 @@ impl Renderer {
                 .targets
                 .as_ref()
                 .ok_or(RenderError::Readback("no frame".into()))?;
-            let marched_all = !t.reprojected
-                || t.history.as_ref().is_some_and(|h| {
-                    h.last_reset.is_some()
-                        && matches!(settings.reprojection, Reprojection::On { full_reset: true })
-                });
-            (t.shown().cloud.clone(), t.cut_mask.clone(), !marched_all)
+            (
+                t.shown().cloud.clone(),
+                t.cut_mask.clone(),
+                t.subset_marched,
+            )
         };
         let gpu = &self.gpu;
         let rb_color = readback::Pending::texture(gpu, &mut enc, &color, 4);
