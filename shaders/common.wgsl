@@ -87,6 +87,10 @@ struct ShadowParams {
     ground_on: u32,             // 0: no ground in the map (sea level, a plain albedo)
     terrain_on: u32,            // 0: the preset's terrain switch is off (sea-level sphere)
     aerial_on: u32,             // 0: the preset's aerial-perspective switch is off (no clear air)
+    row0: u32,                  // the shadow stage makes rows [row0, row_end) of the volume
+    row_end: u32,
+    pad0: u32,
+    pad1: u32,
 };
 
 // The exposure stage's settings (render::exposure::ExposureParams) and result.

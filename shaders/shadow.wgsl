@@ -2,7 +2,8 @@
 // region (map uv × altitude) integrates the cloud's mean extinction from the texel's point to
 // the top of the cloud: toward the key light (R) and straight up (G). The march lights its
 // samples with it beyond its short light march, and the ground takes the clouds' shadows from
-// it. Made when the key light, the map or the look changes, not per frame (render::shadow).
+// it. Made when the key light, the map or the look changes, not per frame, a slice of rows per
+// dispatch when the key light moved (render::shadow).
 
 @group(2) @binding(0) var od_out: texture_storage_3d<rgba16float, write>;
 @group(2) @binding(1) var<uniform> sh: ShadowParams;
@@ -49,12 +50,14 @@ fn path_od(p0: vec3<f32>, h0: f32, d: vec3<f32>) -> f32 {
 // One invocation per column of texels: straight up is one integral down the column, shared by
 // its levels (a running sum from the top, two samples between level centres).
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = textureDimensions(od_out);
-    if (any(id.xy >= dims.xy)) {
+    // This dispatch's slice of rows (a volume may be made over several frames).
+    let id = vec2<u32>(gid.x, gid.y + sh.row0);
+    if (id.x >= dims.x || id.y >= min(dims.y, sh.row_end)) {
         return;
     }
-    let uv = (vec2<f32>(id.xy) + 0.5) / vec2<f32>(dims.xy);
+    let uv = (vec2<f32>(id) + 0.5) / vec2<f32>(dims.xy);
     let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
     let lon = radians(f.region_west + uv.x * f.region_lon_span);
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
@@ -71,6 +74,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         above = h0;
         let p0 = up * (EARTH_R + h0);
         let od = min(vec2<f32>(path_od(p0, h0, sh.key_dir), tau_up * f.extinction), vec2<f32>(6.0e4));
-        textureStore(od_out, vec3<u32>(id.xy, u32(k)), vec4<f32>(od, 0.0, 0.0));
+        textureStore(od_out, vec3<u32>(id, u32(k)), vec4<f32>(od, 0.0, 0.0));
     }
 }

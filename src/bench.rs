@@ -12,6 +12,23 @@ use crate::score;
 
 /// The bench's scenes, by name, over the synthetic sample (`scenes::synthetic`).
 pub const SCENES: [&str; 4] = ["above-noon", "inside-layer", "horizon-dusk", "top-down"];
+/// Its scene with terrain, over the real sample (`scenes::terrain`): the synthetic sample has
+/// no ground, so only this one measures what the terrain costs.
+pub const TERRAIN_SCENES: [&str; 1] = ["over-terrain"];
+
+/// A map and the bench's scenes over it.
+pub struct Set<'a> {
+    pub sample: &'a Sample,
+    pub map: &'a CloudMap,
+    pub scenes: &'a [&'a str],
+}
+
+impl Set<'_> {
+    /// Progress steps: per scene, the reference, each configuration and the per-change tables.
+    pub fn steps(&self) -> usize {
+        self.scenes.len() * (configs().len() + 1)
+    }
+}
 
 /// One measured configuration.
 #[derive(Clone, Debug, Serialize)]
@@ -109,9 +126,9 @@ pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
     let mut p = b;
     p.aerial = false;
     v.push(("balanced − aerial perspective".into(), p));
-    // The per-change work made every frame: the Sun moves 15 minutes a frame, so the light
-    // volume and the sky-view table are made again each time (wall time: they are outside the
-    // timed passes).
+    // The per-change work as a moving Sun pays for it: the Sun moves 15 minutes a frame, so
+    // every frame makes the sky-view table again and a slice of a new light volume
+    // (`shadow::SLICES`) (wall time: they are outside the timed passes).
     v.push((SUN_MOVING.into(), b));
     v
 }
@@ -129,8 +146,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Time frames whose Sun moves 15 minutes each (wall time), so each rebuilds the light volume
-/// and the sky-view table.
+/// Time frames whose Sun moves 15 minutes each (wall time), so each makes the sky-view table
+/// again and a slice of the light volume.
 fn timed_moving(
     r: &mut Renderer,
     view: &View,
@@ -177,17 +194,33 @@ fn timed(
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     r: &mut Renderer,
-    sample: &Sample,
-    map: &CloudMap,
+    sets: &[Set],
+    size: (u32, u32),
+    error_size: (u32, u32),
+    repeats: usize,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<Row>, RenderError> {
+    let mut rows = Vec::new();
+    for set in sets {
+        r.set_map(set.map);
+        let time = set.map.meta.source.valid_time.unwrap_or_default();
+        rows.extend(run_set(r, set, time, size, error_size, repeats, progress)?);
+    }
+    Ok(rows)
+}
+
+/// The bench over one map.
+fn run_set(
+    r: &mut Renderer,
+    set: &Set,
     time: DateTime<Utc>,
     size: (u32, u32),
     error_size: (u32, u32),
     repeats: usize,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<Row>, RenderError> {
-    r.set_map(map);
     let mut rows = Vec::new();
-    for sc in sample.scenes_named(&SCENES) {
+    for sc in set.sample.scenes_named(set.scenes) {
         let mut base = Settings::new(Preset::Reference, time);
         base.time = sc.time.unwrap_or(time);
         progress(&format!("{} reference", sc.name));

@@ -134,6 +134,31 @@ pub fn gfs() -> Sample {
     }
 }
 
+/// The real sample again, over the Himalaya and the Tibetan Plateau (20–40°N, 75–100°E): the
+/// bench's scene with terrain (the file's orography, 4–6 km under the plateau's cloud).
+pub fn terrain() -> Sample {
+    Sample {
+        file: "data-samples/gfs-2011011012-f120-2p5.grib2",
+        region: Region {
+            south: 20.0,
+            north: 40.0,
+            west: 75.0,
+            east: 100.0,
+        },
+        size: (500, 400),
+        scenes: vec![
+            // 400 m over the plateau's southern edge (ground 5.6 km), toward the overcast over
+            // its middle, near local noon.
+            Scene {
+                name: "over-terrain",
+                view: View::Perspective(Camera::new(30.5, 86.0, 6_000.0, 0.0, 8.0)),
+                time: utc(2011, 1, 15, 6, 0),
+            },
+        ],
+        demo_views: vec![],
+    }
+}
+
 /// The sample the demo shows: real weather.
 pub fn demo() -> Sample {
     gfs()

@@ -284,3 +284,48 @@ fn a_cloud_shadow_falls_where_geometry_puts_it() {
     assert!(want.0.abs() > 5.0, "the test's offset is too small to see");
     assert!(err <= 0.02 * w as f64);
 }
+
+#[test]
+fn a_moving_sun_remakes_the_light_over_frames_and_shows_it_whole() {
+    // The round cloud of the shadow test, seen from 120 km; the Sun then sinks from 45° to 30°.
+    let map = made_up(|la, lo| {
+        let d = ((la - 45.0).powi(2) + ((lo - 10.0) * 0.707).powi(2)).sqrt();
+        if d < 0.07 {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let mut cam = Camera::new(45.0, 10.0, 120_000.0, 0.0, -90.0);
+    cam.fov_deg = 30.0;
+    let view = View::Perspective(cam);
+    let mut s = sun_east_settings();
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &map);
+    r.render(&view, 96, 96, &s).expect("a frame");
+    let (made, _) = r.light_builds();
+    let el = 30f64.to_radians();
+    s.sun_override = Some(DVec3::new(el.cos(), 0.0, el.sin()));
+    let slices = stratus::render::shadow::SLICES;
+    for k in 1..slices {
+        r.render(&view, 96, 96, &s).expect("a frame");
+        assert_eq!(
+            r.light_builds().0,
+            made,
+            "frame {k}: the new volume is shown before it is whole"
+        );
+    }
+    let sliced = r.render(&view, 96, 96, &s).expect("a frame");
+    assert_eq!(r.light_builds().0, made + 1, "made in {slices} frames");
+    // Made a slice a frame, it is the volume made whole at once.
+    let mut fresh = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &map);
+    let whole = fresh.render(&view, 96, 96, &s).expect("a frame");
+    assert!(
+        sliced.cloud == whole.cloud && sliced.pixels == whole.pixels,
+        "the sliced volume differs from the whole one"
+    );
+    // And the shadow moved with the Sun: the frame differs from the first Sun's.
+    let mut before = sun_east_settings();
+    before.sun_override = Some(DVec3::new(1.0, 0.0, 1.0).normalize());
+    let old = fresh.render(&view, 96, 96, &before).expect("a frame");
+    assert!(old.pixels != whole.pixels);
+}

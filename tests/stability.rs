@@ -1,5 +1,6 @@
 //! Numerical stability at the extremes (the stability matrix): every case must give finite
-//! output and its documented behaviour. Radiance is checked against the most light can bring in:
+//! output — the cloud layer, the background it is laid over, the exposure and their composite —
+//! and its documented behaviour. Radiance is checked against the most light can bring in:
 //! Sun (≤ 1 per channel) × SUN_I 20 × (1 + ½ + ¼ octaves) × peak phase (< 1) × powder (≤ 2) + sky (< 1).
 
 use std::sync::{Mutex, MutexGuard, OnceLock};
@@ -66,6 +67,39 @@ fn check(o: &Output, case: &str) {
     }
 }
 
+/// The most the background may bring: the Sun's disc (SUN_I 20 × its limb-darkened peak)
+/// seen through clear air, with margin.
+const MAX_BACKGROUND: f32 = 1.0e4;
+
+/// The final composite, made of what the present stage makes it of: the background (sky,
+/// ground, haze) under the cloud layer, times the frame's exposure. Every part and the sum
+/// must be finite: an Inf or NaN there would be a black or white pixel after the tone curve.
+fn check_composite(o: &Output, scene: &[[f32; 4]], exposure: f32, case: &str) {
+    assert!(
+        exposure.is_finite() && exposure > 0.0,
+        "{case}: exposure {exposure}"
+    );
+    assert_eq!(
+        scene.len(),
+        o.cloud.len(),
+        "{case}: one background per pixel"
+    );
+    for (b, c) in scene.iter().zip(&o.cloud) {
+        assert!(
+            b.iter().all(|v| v.is_finite()) && b.iter().all(|&v| v >= 0.0),
+            "{case}: background {b:?}"
+        );
+        assert!(
+            b[..3].iter().all(|&v| v <= MAX_BACKGROUND),
+            "{case}: background radiance {b:?}"
+        );
+        for k in 0..3 {
+            let lin = (b[k] * (1.0 - c[3]) + c[k]) * exposure;
+            assert!(lin.is_finite() && lin >= 0.0, "{case}: composite {lin}");
+        }
+    }
+}
+
 fn go(map: &CloudMap, view: View, s: &Settings, case: &str) -> Output {
     let mut r = renderer();
     r.set_map(map);
@@ -73,6 +107,9 @@ fn go(map: &CloudMap, view: View, s: &Settings, case: &str) -> Output {
         .render(&view, 32, 24, s)
         .unwrap_or_else(|e| panic!("{case}: {e}"));
     check(&o, case);
+    let scene = r.read_scene().unwrap_or_else(|e| panic!("{case}: {e}"));
+    let e = r.read_exposure().unwrap_or_else(|e| panic!("{case}: {e}"));
+    check_composite(&o, &scene, e.value, case);
     o
 }
 

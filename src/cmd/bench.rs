@@ -65,29 +65,29 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let sample = scenes::synthetic();
     let map: CloudMap = sample.map()?;
-    let time = map
-        .meta
-        .source
-        .valid_time
-        .ok_or_else(|| anyhow::anyhow!("the sample has no valid time"))?;
+    let terrain = scenes::terrain();
+    let terrain_map: CloudMap = terrain.map()?;
     let g = Gpu::new(a.adapter.as_deref())?;
     eprintln!("stratus: adapter {}", gpu::describe(&g.info));
     let mut r = Renderer::new(g, &map);
-    let total = (bench::SCENES.len() * (bench::configs().len() + 1)) as u64;
-    let pb = progress_bar(total, "bench");
-    let rows = bench::run(
-        &mut r,
-        &sample,
-        &map,
-        time,
-        size,
-        error_size,
-        a.repeats,
-        &|what| {
-            pb.set_message(what.to_string());
-            pb.inc(1);
+    let sets = [
+        bench::Set {
+            sample: &sample,
+            map: &map,
+            scenes: &bench::SCENES,
         },
-    )?;
+        bench::Set {
+            sample: &terrain,
+            map: &terrain_map,
+            scenes: &bench::TERRAIN_SCENES,
+        },
+    ];
+    let total = sets.iter().map(bench::Set::steps).sum::<usize>() as u64;
+    let pb = progress_bar(total, "bench");
+    let rows = bench::run(&mut r, &sets, size, error_size, a.repeats, &|what| {
+        pb.set_message(what.to_string());
+        pb.inc(1);
+    })?;
     pb.finish_and_clear();
     if let Some(c) = &a.chart {
         write_chart(c, &bench::chart(&rows))?;

@@ -911,6 +911,25 @@ impl Renderer {
         Ok(bytemuck::pod_read_unaligned(&bytes))
     }
 
+    /// The background the last frame laid its cloud over, per pixel: linear radiance (sky,
+    /// Sun, Moon, stars, terrain in the clouds' shadows, aerial haze) and distance in km (0 for
+    /// sky). With the cloud layer and the exposure it is everything the present stage's
+    /// composite is made of (waits for the frame).
+    pub fn read_scene(&self) -> Result<Vec<[f32; 4]>, RenderError> {
+        let t = self
+            .targets
+            .as_ref()
+            .ok_or(RenderError::Readback("no frame".into()))?;
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        let rb = readback::Pending::texture(&self.gpu, &mut enc, &t.shown().scene, 8);
+        self.gpu.queue.submit([enc.finish()]);
+        let raw = rb.finish(&self.gpu)?;
+        Ok(bytemuck::cast_slice::<u8, half::f16>(&raw)
+            .chunks_exact(4)
+            .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
+            .collect())
+    }
+
     /// Wall time (ms) of the per-change work for a view, each made again alone after a frame:
     /// the sky-view table, then the full-column light volume (they are not per frame: `bench`).
     pub fn time_per_change(

@@ -3,7 +3,8 @@
 //! there to the top of the cloud toward the key light and straight up. The march lights its
 //! samples with it beyond the short light march, its ambient sees the sky through it, and the
 //! ground takes the clouds' shadows from it. It is made again only when the key light moves,
-//! the map changes or the look does, never for the camera alone.
+//! the map changes or the look does, never for the camera alone; after a key-light move it is
+//! made a slice a frame into a second volume while the first lights the frames ([`SLICES`]).
 //!
 //! It also owns the scene's bind group (group 3: the volume, its sampler and parameters, and the
 //! atmosphere's sky-view table) that the march, present and exposure stages share
@@ -41,6 +42,12 @@ crate::gpu_struct! {
         pub terrain_on: u32,
         /// 1 when the preset draws the clear air in front of ground and cloud.
         pub aerial_on: u32,
+        /// The rows of texels this dispatch makes, [row0, row_end) (the shadow stage only: a
+        /// volume made over several frames, `ShadowPass::update`).
+        pub row0: u32,
+        pub row_end: u32,
+        pub pad0: u32,
+        pub pad1: u32,
     }
 }
 
@@ -55,6 +62,12 @@ pub const STEPS: u32 = 32;
 pub const MAX_PATH_M: f32 = 600_000.0;
 /// The key light may move this far (degrees) before the volume is made again.
 pub const REBUILD_DEG: f64 = 0.25;
+/// A volume made again because the key light moved is made over this many frames, a slice of
+/// rows each, into the second volume while the first still lights the frame; then they swap.
+/// A moving Sun so costs a frame 1/8 of a volume rather than a whole one (0.6 s on lavapipe),
+/// and the light lags the Sun by at most 8 frames. A changed cloud (map, look) is made whole at
+/// once: the old volume would light the wrong cloud.
+pub const SLICES: u32 = 8;
 
 /// The scene's group, shared by march.wgsl, present.wgsl and exposure.wgsl (scene.wgsl).
 pub const SCENE_GROUP: u32 = 3;
@@ -188,11 +201,32 @@ impl Inputs {
     fn needs_rebuild(&self, last: &Inputs) -> bool {
         let d = |a: [f32; 3]| glam::Vec3::from(a);
         let moved = d(self.key_dir).dot(d(last.key_dir)) < (REBUILD_DEG.to_radians().cos() as f32);
-        moved
-            || self.look != last.look
-            || self.flags != last.flags
-            || self.map_generation != last.map_generation
+        moved || !self.same_cloud(last)
     }
+
+    /// Whether the cloud itself is the one `last` was made of (only the key light may differ).
+    fn same_cloud(&self, last: &Inputs) -> bool {
+        self.look == last.look
+            && self.flags == last.flags
+            && self.map_generation == last.map_generation
+    }
+}
+
+/// One volume with the bind groups that make it and look it up.
+struct Volume {
+    _texture: wgpu::Texture,
+    /// The shadow stage writing it (with the build's parameters).
+    own_bind: wgpu::BindGroup,
+    /// The scene group reading it (with the look-up parameters).
+    scene_bind: wgpu::BindGroup,
+}
+
+/// A volume being made over several frames into the volume that is not shown.
+#[derive(Clone, Copy, Debug)]
+struct Build {
+    inputs: Inputs,
+    key_dir: [f32; 3],
+    next_row: u32,
 }
 
 pub struct ShadowPass {
@@ -200,17 +234,22 @@ pub struct ShadowPass {
     own_layout: wgpu::BindGroupLayout,
     scene_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
+    /// What the stages that look the volume up read (scene group).
     params: wgpu::Buffer,
+    /// What the shadow stage making a volume reads (its key light and rows).
+    build_params: wgpu::Buffer,
     sky: SkyViews,
     ground: wgpu::TextureView,
     /// The ground's uv transform and highest terrain; `None` without a ground.
     ground_fit: Option<([f32; 4], f32)>,
     size: (u32, u32, u32),
-    volume: wgpu::Texture,
-    own_bind: wgpu::BindGroup,
-    scene_bind: wgpu::BindGroup,
+    /// The volume that lights the frames (`front`) and the one the next is made in (two).
+    volumes: Vec<Volume>,
+    front: usize,
+    /// What the front volume was made for; `None`: it must be made whole before use.
     last: Option<Inputs>,
-    /// Volumes made so far (a test checks a camera move makes none).
+    building: Option<Build>,
+    /// Volumes finished so far (a test checks a camera move makes none).
     pub builds: u32,
 }
 
@@ -229,12 +268,16 @@ impl ShadowPass {
             (OWN_BINDINGS, shader::SHADOW),
             &[("MEAN_DENSITY", 1.0)],
         );
-        let params = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shadow params"),
-            size: std::mem::size_of::<ShadowParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let uniform = |label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: std::mem::size_of::<ShadowParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let params = uniform("shadow params");
+        let build_params = uniform("shadow build params");
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("shadow volume"),
             mag_filter: wgpu::FilterMode::Linear,
@@ -244,45 +287,31 @@ impl ShadowPass {
         let size = volume_size(region);
         let (ground_tex, _) = super::ground::upload(gpu, None);
         let ground = ground_tex.create_view(&Default::default());
-        let (volume, own_bind, scene_bind) = Self::make_volume(
-            gpu,
-            size,
-            &own_layout,
-            &scene_layout,
-            (&sampler, &params, &sky, &ground),
-        );
-        ShadowPass {
+        let mut pass = ShadowPass {
             pipeline,
             own_layout,
             scene_layout,
             sampler,
             params,
+            build_params,
             sky,
             ground,
             ground_fit: None,
             size,
-            volume,
-            own_bind,
-            scene_bind,
+            volumes: Vec::new(),
+            front: 0,
             last: None,
+            building: None,
             builds: 0,
-        }
+        };
+        pass.rebind(gpu);
+        pass
     }
 
-    fn make_volume(
-        gpu: &Gpu,
-        (w, h, d): (u32, u32, u32),
-        own_layout: &wgpu::BindGroupLayout,
-        scene_layout: &wgpu::BindGroupLayout,
-        (sampler, params, sky, ground): (
-            &wgpu::Sampler,
-            &wgpu::Buffer,
-            &SkyViews,
-            &wgpu::TextureView,
-        ),
-    ) -> (wgpu::Texture, wgpu::BindGroup, wgpu::BindGroup) {
+    fn make_volume(&self, gpu: &Gpu) -> Volume {
         let dev = &gpu.device;
-        let volume = dev.create_texture(&wgpu::TextureDescriptor {
+        let (w, h, d) = self.size;
+        let texture = dev.create_texture(&wgpu::TextureDescriptor {
             label: Some("shadow volume"),
             size: wgpu::Extent3d {
                 width: w,
@@ -296,31 +325,35 @@ impl ShadowPass {
             usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let view = volume.create_view(&Default::default());
+        let view = texture.create_view(&Default::default());
         use wgpu::BindingResource as R;
-        let own = bind(
+        let own_bind = bind(
             dev,
             "shadow: own",
-            own_layout,
+            &self.own_layout,
             [
                 R::TextureView(&view),
-                R::Buffer(params.as_entire_buffer_binding()),
+                R::Buffer(self.build_params.as_entire_buffer_binding()),
             ],
         );
-        let scene = bind(
+        let scene_bind = bind(
             dev,
             "scene",
-            scene_layout,
+            &self.scene_layout,
             [
                 R::TextureView(&view),
-                R::Sampler(sampler),
-                R::Buffer(params.as_entire_buffer_binding()),
-                R::TextureView(&sky.sky_view),
-                R::TextureView(ground),
-                R::TextureView(&sky.aerial),
+                R::Sampler(&self.sampler),
+                R::Buffer(self.params.as_entire_buffer_binding()),
+                R::TextureView(&self.sky.sky_view),
+                R::TextureView(&self.ground),
+                R::TextureView(&self.sky.aerial),
             ],
         );
-        (volume, own, scene)
+        Volume {
+            _texture: texture,
+            own_bind,
+            scene_bind,
+        }
     }
 
     /// A new map's region: a volume of its size (the old one when the size is the same).
@@ -330,7 +363,7 @@ impl ShadowPass {
             self.size = size;
             self.rebind(gpu);
         }
-        self.last = None;
+        self.invalidate();
     }
 
     /// A map's ground (or none: sea level and a plain albedo).
@@ -342,34 +375,36 @@ impl ShadowPass {
     }
 
     fn rebind(&mut self, gpu: &Gpu) {
-        (self.volume, self.own_bind, self.scene_bind) = Self::make_volume(
-            gpu,
-            self.size,
-            &self.own_layout,
-            &self.scene_layout,
-            (&self.sampler, &self.params, &self.sky, &self.ground),
-        );
-        self.last = None;
+        self.volumes = vec![self.make_volume(gpu), self.make_volume(gpu)];
+        self.invalidate();
     }
 
-    /// Forget what the volume was made for: the next update makes it again.
+    /// Forget what the volume was made for: the next update makes it again, whole.
     pub fn invalidate(&mut self) {
         self.last = None;
+        self.building = None;
     }
 
     pub fn scene_bind(&self) -> &wgpu::BindGroup {
-        &self.scene_bind
+        &self.volumes[self.front].scene_bind
     }
 
-    /// The volume's bytes on the GPU.
+    /// The volumes' bytes on the GPU (two: one shown, one being made).
     pub fn volume_bytes(&self) -> u64 {
         let (w, h, d) = self.size;
-        w as u64 * h as u64 * d as u64 * 8
+        2 * w as u64 * h as u64 * d as u64 * 8
+    }
+
+    /// Whether a volume is being made over several frames (the key light moved).
+    pub fn is_building(&self) -> bool {
+        self.building.is_some()
     }
 
     /// Make the volume for this frame's uniforms (already written to the march's uniform
     /// buffer before `enc` runs) if what it depends on changed; `enabled` is the preset's
-    /// switch. Returns whether it was made.
+    /// switch. A changed cloud makes it whole now; a moved key light starts (or goes on with)
+    /// a volume made [`SLICES`] rows at a time into the other volume, shown when done.
+    /// Returns whether a volume was finished.
     #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
@@ -399,31 +434,80 @@ impl ShadowPass {
             ground_on: u32::from(self.ground_fit.is_some()),
             terrain_on: u32::from(terrain && self.ground_fit.is_some()),
             aerial_on: u32::from(aerial),
+            ..Default::default()
         };
         // The ground's part can change without the volume (the preset's terrain switch).
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let stale = self
-            .last
-            .as_ref()
-            .is_none_or(|last| inputs.needs_rebuild(last));
-        if !stale {
-            return false;
-        }
-        self.last = Some(inputs);
+        let rows = self.size.1;
+        let (target, build) = match self.last {
+            Some(last) if !inputs.needs_rebuild(&last) => match self.building {
+                // Settled: nothing to make.
+                None => return false,
+                Some(b) => (1 - self.front, b),
+            },
+            Some(last) if inputs.same_cloud(&last) => {
+                let b = self.building.unwrap_or(Build {
+                    inputs,
+                    key_dir,
+                    next_row: 0,
+                });
+                (1 - self.front, b)
+            }
+            _ => {
+                // A new cloud (or none made yet): whole, now, into the front volume.
+                self.building = None;
+                (
+                    self.front,
+                    Build {
+                        inputs,
+                        key_dir,
+                        next_row: 0,
+                    },
+                )
+            }
+        };
         if params.enabled == 0 {
+            // Look-ups give no cloud; switched on again, it is made whole.
+            self.invalidate();
             return false;
         }
-        let (w, h, _) = self.size;
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("shadow"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, march.device_bind(), &[]);
-        pass.set_bind_group(1, map_bind, &[]);
-        pass.set_bind_group(GROUP_TARGET, &self.own_bind, &[]);
-        pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        let whole = target == self.front;
+        let row_end = if whole {
+            rows
+        } else {
+            (build.next_row + rows.div_ceil(SLICES)).min(rows)
+        };
+        let build_params = ShadowParams {
+            key_dir: build.key_dir,
+            row0: build.next_row,
+            row_end,
+            ..params
+        };
+        gpu.queue
+            .write_buffer(&self.build_params, 0, bytemuck::bytes_of(&build_params));
+        let (w, _, _) = self.size;
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("shadow"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, march.device_bind(), &[]);
+            pass.set_bind_group(1, map_bind, &[]);
+            pass.set_bind_group(GROUP_TARGET, &self.volumes[target].own_bind, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), (row_end - build.next_row).div_ceil(8), 1);
+        }
+        if row_end < rows {
+            self.building = Some(Build {
+                next_row: row_end,
+                ..build
+            });
+            return false;
+        }
+        self.front = target;
+        self.last = Some(build.inputs);
+        self.building = None;
         self.builds += 1;
         true
     }
