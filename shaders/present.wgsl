@@ -21,6 +21,10 @@ fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
     return o;
 }
 
+// Set by the pipeline from the preset (render::preset::MarchParams::wide_upsample): the
+// upsample's 4×4 footprint that also resolves the march's jitter, else the four nearest.
+override WIDE_UPSAMPLE: bool = true;
+
 // Set by the pipeline for a non-sRGB target (a window's Bgra8Unorm, which egui prefers): the
 // shader then applies the sRGB transfer curve itself.
 override ENCODE_SRGB: bool = false;
@@ -44,68 +48,93 @@ fn edge_weight(da: f32, d: f32, near_d: f32) -> f32 {
     return 1.0 / (1.0 + 16.0 * abs(da) + 8.0 * dd);
 }
 
+// The upsample's running sums: cloud and its weight, background and its weight.
+struct Upsample {
+    c: vec4<f32>,
+    wsum: f32,
+    b: vec3<f32>,
+    bw: f32,
+};
+
+// One march pixel into the upsample, at base weights w (cloud) and wb (background), each
+// lowered by how far its opacity and distance are from the nearest march pixel's (near).
+fn upsample_tap(acc: ptr<function, Upsample>, p: vec2<i32>, dims: vec2<i32>, w: f32, wb: f32, near: vec2<f32>) {
+    let at = clamp(p, vec2<i32>(0), dims - 1);
+    let t = textureLoad(cloud, at, 0);
+    let sc = textureLoad(scene, at, 0);
+    let wc = (w + 1e-4) * edge_weight(t.a - near.x, sc.a, near.y);
+    (*acc).c += wc * t;
+    (*acc).wsum += wc;
+    let wbg = wb * edge_weight(0.0, sc.a, near.y);
+    (*acc).b += wbg * sc.rgb;
+    (*acc).bw += wbg;
+}
+
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));
     var c: vec4<f32>;
-    // Resolve the march's interleaved-gradient jitter, which spreads its values evenly over
-    // every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and thin layers
-    // otherwise show the jitter's lattice. Not for the score's top-down frames (a mask view,
-    // where a blur only moves edges). One separable filter does both cases: bilinear between
-    // 3×3 means over a 4×4 footprint, weights (1−f)/3, 1/3, 1/3, f/3 per axis; at 1:1 f = 0
-    // and it is the plain 3×3 mean. When the window marches at a fraction of its size
-    // (march_scale < 1) it is also the upsample.
-    let resolve = has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY);
-    let upsample = f.march_scale < 0.99;
+    let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
     var bg: vec3<f32>;
-    if (resolve || upsample) {
+    if (f.march_scale < 0.99) {
+        // The window marches at a fraction of its size: an edge-aware upsample (a joint
+        // bilateral filter on the march's own opacity and depth): a march pixel counts less the
+        // more its opacity and distance differ from the nearest one's, so a cloud's edge stays
+        // as sharp as the march found it instead of softening. Over the four march pixels
+        // around (bilinear weights), or with WIDE_UPSAMPLE over a 4×4 footprint that also
+        // resolves the march's jitter: bilinear between 3×3 means, weights (1−f)/3, 1/3, 1/3,
+        // f/3 per axis. On a CPU driver, the one that upsamples, this pass runs over every
+        // window pixel: the 4×4 footprint costs about 30 ms a frame more at 1280×720 (fly.md).
         let q = px - 0.5;
-        let i0 = vec2<i32>(floor(q));
         let fr = q - floor(q);
-        let wx = vec4<f32>(1.0 - fr.x, 1.0, 1.0, fr.x) / 3.0;
-        let wy = vec4<f32>(1.0 - fr.y, 1.0, 1.0, fr.y) / 3.0;
-        // Edge-aware where it upsamples: a march pixel counts less the more its opacity and
-        // distance differ from the nearest one's, so a cloud's edge stays as sharp as the
-        // march found it instead of softening over the footprint (a joint bilateral filter on
-        // the march's own opacity and depth). At 1:1 every weight is 1: the plain resolve.
-        let near = textureLoad(cloud, clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1), 0).a;
-        let near_d = textureLoad(scene, clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1), 0).a;
-        c = vec4<f32>(0.0);
-        var wsum = 0.0;
-        var bsum = vec3<f32>(0.0);
-        var bw = 0.0;
-        for (var j = 0; j < 4; j++) {
-            for (var i = 0; i < 4; i++) {
-                let at = clamp(i0 + vec2<i32>(i - 1, j - 1), vec2<i32>(0), dims - 1);
-                let t = textureLoad(cloud, at, 0);
-                let sc = textureLoad(scene, at, 0);
-                var w = wx[i] * wy[j];
-                if (upsample) {
-                    w *= edge_weight(t.a - near, sc.a, near_d);
+        let i0 = vec2<i32>(floor(q));
+        let near = vec2<f32>(textureLoad(cloud, near_at, 0).a, textureLoad(scene, near_at, 0).a);
+        var acc = Upsample(vec4<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+        if (WIDE_UPSAMPLE) {
+            let wx = vec4<f32>(1.0 - fr.x, 1.0, 1.0, fr.x) / 3.0;
+            let wy = vec4<f32>(1.0 - fr.y, 1.0, 1.0, fr.y) / 3.0;
+            for (var j = 0; j < 4; j++) {
+                for (var i = 0; i < 4; i++) {
+                    // The background has no jitter to resolve: its own bilinear taps (the
+                    // middle four).
+                    let inner = (i == 1 || i == 2) && (j == 1 || j == 2);
+                    let wb = select(0.0, select(1.0 - fr.x, fr.x, i == 2) * select(1.0 - fr.y, fr.y, j == 2), inner);
+                    upsample_tap(&acc, i0 + vec2<i32>(i - 1, j - 1), dims, wx[i] * wy[j], wb, near);
                 }
-                c += w * t;
-                wsum += w;
-                // The background has no jitter to resolve: its own bilinear taps (the middle
-                // four) where it upsamples.
-                if (i == 1 || i == 2) && (j == 1 || j == 2) {
-                    let wb = select(1.0 - fr.x, fr.x, i == 2) * select(1.0 - fr.y, fr.y, j == 2)
-                        * select(1.0, edge_weight(0.0, sc.a, near_d), upsample);
-                    bsum += wb * sc.rgb;
-                    bw += wb;
+            }
+        } else {
+            for (var j = 0; j < 2; j++) {
+                for (var i = 0; i < 2; i++) {
+                    let w = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1);
+                    upsample_tap(&acc, i0 + vec2<i32>(i, j), dims, w, w, near);
                 }
             }
         }
+        c = acc.c;
+        let wsum = acc.wsum;
+        let bsum = acc.b;
+        let bw = acc.bw;
         c /= max(wsum, 1e-6);
         bg = bsum / max(bw, 1e-6);
-        if (!upsample) {
-            bg = textureLoad(scene, clamp(vec2<i32>(px), vec2<i32>(0), dims - 1), 0).rgb;
-        }
     } else {
-        let at = clamp(vec2<i32>(px), vec2<i32>(0), dims - 1);
-        c = textureLoad(cloud, at, 0);
-        bg = textureLoad(scene, at, 0).rgb;
+        bg = textureLoad(scene, near_at, 0).rgb;
+        if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
+            // Resolve the march's interleaved-gradient jitter, which spreads its values evenly
+            // over every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and
+            // thin layers otherwise show the jitter's lattice: the 3×3 mean. Not for the
+            // score's top-down frames (a mask view, where a blur only moves edges).
+            c = vec4<f32>(0.0);
+            for (var j = -1; j <= 1; j++) {
+                for (var i = -1; i <= 1; i++) {
+                    c += textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
+                }
+            }
+            c /= 9.0;
+        } else {
+            c = textureLoad(cloud, near_at, 0);
+        }
     }
     let lin = bg * (1.0 - c.a) + c.rgb;
     var out = aces(lin * exposure.value);

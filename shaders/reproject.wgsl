@@ -5,7 +5,7 @@
 // region's edge) is rejected and the fresh subset, upsampled, stands in for it.
 
 @group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
-@group(0) @binding(1) var<uniform> rp: Reproject;
+@group(0) @binding(1) var<storage, read> rp: Reproject;   // storage: see render::contract::params
 @group(0) @binding(2) var lin: sampler;
 // This frame's subset march: one texel per cell (march.wgsl's cloud and scene).
 @group(1) @binding(0) var fresh_cloud: texture_2d<f32>;

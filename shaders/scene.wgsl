@@ -4,7 +4,7 @@
 // where there is no cloud (sky, Sun, Moon, stars, ground in the clouds' shadows).
 @group(3) @binding(0) var od_tex: texture_3d<f32>;
 @group(3) @binding(1) var od_sampler: sampler;
-@group(3) @binding(2) var<uniform> sh: ShadowParams;
+@group(3) @binding(2) var<storage, read> sh: ShadowParams;   // storage: see render::contract::params
 // The sky around the camera (render::atmosphere's sky-view table).
 @group(3) @binding(3) var sky_tex: texture_2d<f32>;
 // The map's ground (render::ground): terrain height (m) and surface albedo (RGB).

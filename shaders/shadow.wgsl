@@ -6,7 +6,7 @@
 // dispatch when the key light moved (render::shadow).
 
 @group(2) @binding(0) var od_out: texture_storage_3d<rgba16float, write>;
-@group(2) @binding(1) var<uniform> sh: ShadowParams;
+@group(2) @binding(1) var<storage, read> sh: ShadowParams;   // storage: see render::contract::params
 
 // Optical depth given to a point the Earth hides from the key light; f16 holds it.
 const SHADOW_BLOCKED: f32 = 1000.0;

@@ -264,7 +264,7 @@ impl App {
         controls.render_scale = self
             .opts
             .render_scale
-            .unwrap_or_else(|| panel::default_render_scale(cpu, self.opts.reprojection));
+            .unwrap_or_else(|| panel::default_render_scale(cpu));
         controls.visibility_km = self.opts.visibility_km;
         controls.set_map(&self.opts.map);
         controls.set_time(valid, self.opts.time, timeline.as_ref().map(|t| t.span()));

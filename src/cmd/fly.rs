@@ -47,8 +47,8 @@ pub struct Args {
     /// size) and reprojects the rest from the frames before: on or off.
     #[arg(long, default_value = "on", action = clap::ArgAction::Set, value_parser = parse_on_off)]
     pub reprojection: bool,
-    /// The march's size relative to the window, 0.05..1 (default: 1 on a GPU; on a CPU adapter
-    /// ½ with reprojection, ¼ without).
+    /// The march's size relative to the window, 0.05..1 (default: 1 on a GPU, ¼ on a CPU
+    /// adapter).
     #[arg(long)]
     pub render_scale: Option<f32>,
     /// Meteorological visibility in km (aerial haze; the panel changes it).

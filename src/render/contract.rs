@@ -259,10 +259,22 @@ pub const fn frame(group: u32, binding: u32) -> Binding {
     }
 }
 
+/// A stage's own parameters that change from frame to frame (the reprojection's camera, the
+/// light volume's key light and rows): a read-only storage buffer too, for the reason given at
+/// [`frame`]: as a uniform buffer lavapipe recompiled the stage for each new value.
+pub const fn params(group: u32, binding: u32) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource: Resource::StorageRead,
+    }
+}
+
 /// The structs shared by every stage that declares them.
 pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
     use super::exposure::{ExposureParams, ExposureState};
     use super::noise::NoiseParams;
+    use super::reproject::ReprojectParams;
     use super::section::SectionParams;
     use super::shadow::ShadowParams;
     vec![
@@ -295,6 +307,11 @@ pub fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
             NoiseParams::WGSL_NAME,
             NoiseParams::fields(),
             std::mem::size_of::<NoiseParams>(),
+        ),
+        (
+            ReprojectParams::WGSL_NAME,
+            ReprojectParams::fields(),
+            std::mem::size_of::<ReprojectParams>(),
         ),
     ]
 }
@@ -500,7 +517,9 @@ mod tests {
     }
 
     fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
-        use super::super::{atmosphere, exposure, march, noise, present, section, shader, shadow};
+        use super::super::{
+            atmosphere, exposure, march, noise, present, reproject, section, shader, shadow,
+        };
         // The section's table is the march's groups 0 and 1 and its own: made once, kept (the
         // same for the stages that add the scene's group).
         static SECTION: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
@@ -511,6 +530,7 @@ mod tests {
         vec![
             ("noise", shader::NOISE, noise::BINDINGS),
             ("atmosphere", shader::ATMOSPHERE, atmosphere::BINDINGS),
+            ("reproject", shader::REPROJECT, reproject::BINDINGS),
             (
                 "march",
                 shader::MARCH,

@@ -672,7 +672,9 @@ impl Renderer {
         settings.validate()?;
         self.blend_at(settings);
         let mut uniforms = self.uniforms(view, (width, height, target_width), settings)?;
-        let pipeline = self.present.prepare(&self.gpu, target_format);
+        let pipeline = self
+            .present
+            .prepare(&self.gpu, target_format, settings.march.wide_upsample);
         let plan = self.plan_reprojection(view, (width, height), settings);
         let Renderer {
             gpu,

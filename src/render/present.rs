@@ -40,14 +40,14 @@ pub fn bindings() -> Vec<Binding> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PipelineId(usize);
 
-/// The present pipelines (one per target format, sharing one layout) and the uniforms' bind
+/// The present pipelines (one per target format and upsample footprint, sharing one layout) and the uniforms' bind
 /// group.
 pub struct PresentPass {
     layouts: [wgpu::BindGroupLayout; 2],
     layout: wgpu::PipelineLayout,
     device_bind: wgpu::BindGroup,
     exposure_bind: wgpu::BindGroup,
-    pipelines: Vec<(wgpu::TextureFormat, wgpu::RenderPipeline)>,
+    pipelines: Vec<((wgpu::TextureFormat, bool), wgpu::RenderPipeline)>,
 }
 
 impl PresentPass {
@@ -106,14 +106,25 @@ impl PresentPass {
         }
     }
 
-    /// The pipeline for a target format, made on first use.
-    pub fn prepare(&mut self, gpu: &Gpu, format: wgpu::TextureFormat) -> PipelineId {
-        if let Some(i) = self.pipelines.iter().position(|(f, _)| *f == format) {
+    /// The pipeline for a target format and upsample footprint (`MarchParams::wide_upsample`),
+    /// made on first use. The footprint is a pipeline constant, not a uniform branch: lavapipe
+    /// then compiles only the loop it runs (a run-time branch cost about 10 ms a frame).
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        format: wgpu::TextureFormat,
+        wide_upsample: bool,
+    ) -> PipelineId {
+        let key = (format, wide_upsample);
+        if let Some(i) = self.pipelines.iter().position(|(k, _)| *k == key) {
             return PipelineId(i);
         }
         let dev = &gpu.device;
         let module = shader::module(dev, "present", shader::PRESENT);
-        let encode = [("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 })];
+        let encode = [
+            ("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 }),
+            ("WIDE_UPSAMPLE", if wide_upsample { 1.0 } else { 0.0 }),
+        ];
         let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("present"),
             layout: Some(&self.layout),
@@ -138,7 +149,7 @@ impl PresentPass {
             multiview_mask: None,
             cache: None,
         });
-        self.pipelines.push((format, pipeline));
+        self.pipelines.push((key, pipeline));
         PipelineId(self.pipelines.len() - 1)
     }
 

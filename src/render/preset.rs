@@ -61,6 +61,7 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 4,
+                wide_upsample: false,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -76,6 +77,7 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 4,
+                wide_upsample: true,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -91,6 +93,7 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 2,
+                wide_upsample: true,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -106,6 +109,7 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 1,
+                wide_upsample: true,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -177,6 +181,11 @@ pub struct MarchParams {
     /// marches one pixel of each `subset`×`subset` cell and reprojects the rest
     /// (render::reproject); 1 marches every pixel. A power of two, at most 8.
     pub subset: u32,
+    /// Where the window marches at a fraction of its size, the present stage's upsample: a 4×4
+    /// footprint that also resolves the march's jitter (true), or the four nearest march pixels
+    /// (false: a quarter of the texture reads over every window pixel, about 30 ms a frame less
+    /// at 1280×720 on lavapipe; the jitter's grain shows up close, docs/fly.md).
+    pub wide_upsample: bool,
     pub shortcuts: Shortcuts,
 }
 

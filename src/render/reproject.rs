@@ -47,7 +47,7 @@ pub const TIME_JUMP_S: i64 = 900;
 /// Every binding of reproject.wgsl.
 pub const BINDINGS: &[Binding] = &[
     contract::frame(0, 0),
-    contract::uniform::<ReprojectParams>(0, 1),
+    contract::params(0, 1),
     b(0, 2, Resource::Sampler),
     b(1, 0, Resource::Texture2d { filterable: true }),
     b(1, 1, Resource::Texture2d { filterable: true }),
@@ -199,7 +199,7 @@ impl ReprojectPass {
         let params = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("reproject params"),
             size: std::mem::size_of::<ReprojectParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {

@@ -82,7 +82,7 @@ pub const SCENE_BINDINGS: &[Binding] = &[
         binding: 1,
         resource: Resource::Sampler,
     },
-    contract::uniform::<ShadowParams>(SCENE_GROUP, 2),
+    contract::params(SCENE_GROUP, 2),
     // The atmosphere's sky-view table (render::atmosphere).
     Binding {
         group: SCENE_GROUP,
@@ -116,7 +116,7 @@ pub const OWN_BINDINGS: &[Binding] = &[
         binding: 0,
         resource: Resource::StorageTexture(VOLUME_FORMAT, 3),
     },
-    contract::uniform::<ShadowParams>(GROUP_TARGET, 1),
+    contract::params(GROUP_TARGET, 1),
 ];
 
 /// Every binding of shadow.wgsl.
@@ -272,7 +272,7 @@ impl ShadowPass {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: std::mem::size_of::<ShadowParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
