@@ -926,10 +926,7 @@ impl Renderer {
         let rb = readback::Pending::texture(&self.gpu, &mut enc, &t.shown().scene, 8);
         self.gpu.queue.submit([enc.finish()]);
         let raw = rb.finish(&self.gpu)?;
-        Ok(bytemuck::cast_slice::<u8, half::f16>(&raw)
-            .chunks_exact(4)
-            .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
-            .collect())
+        Ok(readback::rgba16f(&raw))
     }
 
     /// Wall time (ms) of the per-change work for a view, each made again alone after a frame:
@@ -1089,10 +1086,7 @@ impl Renderer {
             return Err(RenderError::Gpu(e.to_string()));
         }
         let cloud_raw = rb_cloud.finish(gpu)?;
-        let cloud: Vec<[f32; 4]> = bytemuck::cast_slice::<u8, half::f16>(&cloud_raw)
-            .chunks_exact(4)
-            .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
-            .collect();
+        let cloud = readback::rgba16f(&cloud_raw);
         let FrameStats {
             stats,
             march_ms,
