@@ -151,6 +151,20 @@ pub fn fly_path(pilot: &mut Pilot, path: &crate::flight::FlightPath, t: f64) {
     pilot.fov = cam.fov_deg;
     pilot.look_yaw = 0.0;
     pilot.look_pitch = 0.0;
+    // The HUD's speed: the path's, over the half second around t.
+    let dt = 0.5;
+    let (t0, t1) = if t + dt <= path.duration() {
+        (t, t + dt)
+    } else {
+        ((t - dt).max(0.0), t)
+    };
+    let pos = |t: f64| {
+        let (c, _) = path.at(t);
+        crate::render::camera::ecef(c.lat_deg, c.lon_deg, c.alt_m)
+    };
+    if t1 > t0 {
+        pilot.speed = pos(t1).distance(pos(t0)) / (t1 - t0);
+    }
 }
 
 #[cfg(test)]
@@ -245,5 +259,18 @@ mod tests {
         let h0 = p.heading;
         p.step(&keys, 0.5);
         assert!(p.heading > h0, "a right bank turns right");
+    }
+
+    #[test]
+    fn a_played_path_gives_the_hud_its_speed() {
+        // docs/flights/ea-cruise.json cruises at 230 m/s for its first 15 s.
+        let path =
+            crate::flight::FlightPath::parse(include_bytes!("../../docs/flights/ea-cruise.json"))
+                .expect("the sample path");
+        let mut p = Pilot::at(0.0, 0.0, 1000.0, 0.0, 0.0);
+        for t in [1.0, 7.3, 14.0] {
+            fly_path(&mut p, &path, t);
+            assert!((p.speed - 230.0).abs() < 3.0, "at {t} s: {} m/s", p.speed);
+        }
     }
 }

@@ -105,6 +105,13 @@ impl Pending {
 pub fn rgba16f(raw: &[u8]) -> Vec<[f32; 4]> {
     let half = |b: &[u8]| half::f16::from_le_bytes([b[0], b[1]]).to_f32();
     raw.chunks_exact(8)
-        .map(|t| [half(&t[0..2]), half(&t[2..4]), half(&t[4..6]), half(&t[6..8])])
+        .map(|t| {
+            [
+                half(&t[0..2]),
+                half(&t[2..4]),
+                half(&t[4..6]),
+                half(&t[6..8]),
+            ]
+        })
         .collect()
 }
