@@ -112,12 +112,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
                 }
             }
         }
-        c = acc.c;
-        let wsum = acc.wsum;
-        let bsum = acc.b;
-        let bw = acc.bw;
-        c /= max(wsum, 1e-6);
-        bg = bsum / max(bw, 1e-6);
+        c = acc.c / max(acc.wsum, 1e-6);
+        bg = acc.b / max(acc.bw, 1e-6);
     } else {
         bg = textureLoad(scene, near_at, 0).rgb;
         if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {

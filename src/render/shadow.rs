@@ -268,7 +268,7 @@ impl ShadowPass {
             (OWN_BINDINGS, shader::SHADOW),
             &[("MEAN_DENSITY", 1.0)],
         );
-        let uniform = |label| {
+        let params_buffer = |label| {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: std::mem::size_of::<ShadowParams>() as u64,
@@ -276,8 +276,8 @@ impl ShadowPass {
                 mapped_at_creation: false,
             })
         };
-        let params = uniform("shadow params");
-        let build_params = uniform("shadow build params");
+        let params = params_buffer("shadow params");
+        let build_params = params_buffer("shadow build params");
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("shadow volume"),
             mag_filter: wgpu::FilterMode::Linear,
