@@ -152,14 +152,12 @@ impl ExposurePass {
         cloud: &wgpu::TextureView,
         scene: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
-        bind(
+        super::march::bind_frame_textures(
             &gpu.device,
             "exposure: target",
             &self.target_layout,
-            [
-                wgpu::BindingResource::TextureView(cloud),
-                wgpu::BindingResource::TextureView(scene),
-            ],
+            cloud,
+            scene,
         )
     }
 

@@ -301,6 +301,26 @@ impl MarchPass {
     }
 }
 
+/// A frame's cloud and scene textures bound as group 1 bindings 0 and 1, what the exposure
+/// and present stages read (each with its own layout).
+pub fn bind_frame_textures(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    cloud: &wgpu::TextureView,
+    scene: &wgpu::TextureView,
+) -> wgpu::BindGroup {
+    bind(
+        dev,
+        label,
+        layout,
+        [
+            wgpu::BindingResource::TextureView(cloud),
+            wgpu::BindingResource::TextureView(scene),
+        ],
+    )
+}
+
 /// A bind group whose entries are numbered in order from 0.
 pub fn bind<const N: usize>(
     dev: &wgpu::Device,

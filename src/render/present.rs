@@ -161,14 +161,12 @@ impl PresentPass {
         cloud: &wgpu::TextureView,
         scene: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
-        bind(
+        super::march::bind_frame_textures(
             &gpu.device,
             "present: target",
             &self.layouts[1],
-            [
-                wgpu::BindingResource::TextureView(cloud),
-                wgpu::BindingResource::TextureView(scene),
-            ],
+            cloud,
+            scene,
         )
     }
 
