@@ -71,7 +71,7 @@ impl Preset {
                 max_steps: 400,
                 light_steps: 3,
                 light_reach_m: 800.0,
-                early_exit: 0.02,
+                early_exit: 0.04,
                 detail: true,
                 column_light: true,
                 terrain: true,
