@@ -191,7 +191,6 @@ fn timed(
 }
 
 /// Run the bench: timings at `size`, errors against `reference` at `error_size`.
-#[allow(clippy::too_many_arguments)]
 pub fn run(
     r: &mut Renderer,
     sets: &[Set],
@@ -203,22 +202,21 @@ pub fn run(
     let mut rows = Vec::new();
     for set in sets {
         r.set_map(set.map);
-        let time = set.map.meta.source.valid_time.unwrap_or_default();
-        rows.extend(run_set(r, set, time, size, error_size, repeats, progress)?);
+        rows.extend(run_set(r, set, size, error_size, repeats, progress)?);
     }
     Ok(rows)
 }
 
-/// The bench over one map.
+/// The bench over one map (already the renderer's), at its valid time unless a scene has its own.
 fn run_set(
     r: &mut Renderer,
     set: &Set,
-    time: DateTime<Utc>,
     size: (u32, u32),
     error_size: (u32, u32),
     repeats: usize,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<Row>, RenderError> {
+    let time: DateTime<Utc> = set.map.meta.source.valid_time.unwrap_or_default();
     let mut rows = Vec::new();
     for sc in set.sample.scenes_named(set.scenes) {
         let mut base = Settings::new(Preset::Reference, time);
