@@ -395,11 +395,6 @@ impl ShadowPass {
         2 * w as u64 * h as u64 * d as u64 * 8
     }
 
-    /// Whether a volume is being made over several frames (the key light moved).
-    pub fn is_building(&self) -> bool {
-        self.building.is_some()
-    }
-
     /// Make the volume for this frame's uniforms (already written to the march's uniform
     /// buffer before `enc` runs) if what it depends on changed; `enabled` is the preset's
     /// switch. A changed cloud makes it whole now; a moved key light starts (or goes on with)
