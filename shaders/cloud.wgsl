@@ -30,8 +30,16 @@ const PROFILE_WIDTH: f32 = 64.0;
 const REFERENCE_THICKNESS_M: f32 = 2000.0;
 // Cirrus: the noise squeezed this many times along the wind, and shifted this far downwind
 // from the column's base to its top (m).
-const STREAK_STRETCH: f32 = 6.0;
+const STREAK_STRETCH: f32 = 8.0;
 const STREAK_SHEAR_M: f32 = 3000.0;
+// Cumulonimbus towers: their grid spacing and a trunk's radius at full coverage (km), and the
+// trunk's density (a stratus deck's is about 1; a towering cumulonimbus is far denser).
+const TOWER_SPACING_KM: f32 = 40.0;
+const TOWER_RADIUS_KM: f32 = 7.0;
+const TOWER_DENSITY: f32 = 3.0;
+// The anvil's shield (GFS's high cover over deep convection) fills the column from this height
+// fraction up: a flat sheet under the top that the towers rise into.
+const ANVIL_FROM: f32 = 0.72;
 
 // Work counters: indices into `counters`, the fields of render::march::Counters in order.
 const C_RAYS: u32 = 0u;
@@ -125,13 +133,14 @@ fn shape_noise(np: vec3<f32>) -> f32 {
     return remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
 }
 
-// Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`),
+// Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`; the
+// shape noise `freq` times finer than its period),
 // eroded by detail noise at the edges, times the density profile gd (DESIGN §2 eqs 15–18).
-fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool) -> f32 {
+fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool, freq: f32) -> f32 {
     if (MEAN_DENSITY) {
         return mean_carve(ns_scale, lo) * gd;
     }
-    let ns_tex = shape_noise(np);
+    let ns_tex = shape_noise(np * freq);
     let ns = sat(remap(ns_tex * ns_scale, lo, 1.0, 0.0, 1.0));
     if (ns <= 0.0) {
         return 0.0;
@@ -165,7 +174,7 @@ fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
     if (gs <= 0.0 || gd <= 0.0) {
         return 0.0;
     }
-    return carve(np, gs, 1.0 - cm, gd, cm, ph, detail);
+    return carve(np, gs, 1.0 - cm, gd, cm, ph, detail, 1.0);
 }
 
 // DESIGN §7, one column of a genus: the threshold 1 − cm·P(h) from the genus' profile row, so
@@ -178,7 +187,51 @@ fn genus_density(np: vec3<f32>, cm: f32, ph: f32, code: f32, detail: bool) -> f3
         return 0.0;
     }
     // The threshold sees coverage^γ (render::profile::Shape::gamma): opacity follows coverage.
-    return carve(np, 1.0, 1.0 - pow(cm, pd.b) * pd.r, gd, cm, ph, detail);
+    // A is the genus' cell frequency: an integer, so the camera-relative noise position still
+    // wraps by whole periods.
+    return carve(np, 1.0, 1.0 - pow(cm, pd.b) * pd.r, gd, cm, ph, detail, pd.a);
+}
+
+// A hash of a 2D cell, three values in 0..1.
+fn hash3(c: vec2<i32>) -> vec3<f32> {
+    var x = u32(c.x) * 73856093u ^ u32(c.y) * 19349663u;
+    x = (x ^ (x >> 16u)) * 0x45d9f3bu;
+    let y = (x ^ (x >> 15u)) * 0x2c1b3c6du;
+    let z = (y ^ (y >> 12u)) * 0x297a2d39u;
+    return vec3<f32>(f32(x & 0xffffu), f32(y & 0xffffu), f32(z & 0xffffu)) / 65535.0;
+}
+
+// Cumulonimbus towers (DESIGN §7): a deep convective column is not a field of noise but a few
+// towers, each a cauliflower trunk from the base to the forecast's convective top that spreads
+// into an anvil under it. Towers stand on a jittered grid TOWER_SPACING_KM apart (at most one a
+// cell, the nearest four cells looked at so anvils are not clipped at cell edges); a tower's
+// radius grows with the coverage of the layers it spans, and the shape noise carves its edge.
+fn tower_density(uv: vec2<f32>, ph: f32, body_cm: f32, np: vec3<f32>) -> f32 {
+    if (body_cm <= 0.0 || ph >= 1.0) {
+        return 0.0;
+    }
+    let lat_span = f.region_north - f.region_south;
+    let lat = radians(f.region_north - uv.y * lat_span);
+    let g = vec2<f32>(uv.x * f.region_lon_span * cos(lat), uv.y * lat_span) * (111.2 / TOWER_SPACING_KM);
+    // The trunk widens a little with height, then the anvil spreads over the top fifth.
+    let widen = (0.8 + 0.2 * ph) * (1.0 + 2.5 * smoothstep(0.78, 0.95, ph));
+    let r_base = TOWER_RADIUS_KM / TOWER_SPACING_KM * sqrt(body_cm);
+    let o = vec2<i32>(floor(g - 0.5));
+    var t = -1.0;
+    for (var j = 0; j < 4; j++) {
+        let cell = o + vec2<i32>(j & 1, j >> 1u);
+        let hs = hash3(cell);
+        let d = length(g - (vec2<f32>(cell) + 0.2 + 0.6 * hs.xy));
+        t = max(t, 1.0 - d / (r_base * (0.6 + 0.8 * hs.z) * widen));
+    }
+    // Beyond this no noise value (at most 1) lifts v above 0: 2.5·t + 4·(1 − 0.72) ≤ 0.
+    if (t <= -0.45) {
+        return 0.0;
+    }
+    // A flat, solid base; the top rounded by the noise.
+    let n = 0.5 * shape_noise(np * 2.0) + 0.5 * shape_noise(np * 8.0);
+    let v = sat(2.5 * t + 4.0 * (n - 0.72) - 2.0 * smoothstep(0.9, 1.0, ph)) * sat(ph / 0.03);
+    return v * TOWER_DENSITY;
 }
 
 // A cheap hash of a 200 m cell of noise space, in 0..1.
@@ -206,7 +259,12 @@ fn streaked(uv: vec2<f32>, h: f32, ph: f32, w: vec2<f32>, np: vec3<f32>) -> vec3
     let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
     let dir = normalize(w.x * east + w.y * north);
-    let p = up * (EARTH_R + h);
+    // Measured from the region's centre: the point's own position is radial, with no component
+    // along its local wind to squeeze.
+    let c_lat = radians(0.5 * (f.region_north + f.region_south));
+    let c_lon = radians(f.region_west + 0.5 * f.region_lon_span);
+    let c = vec3<f32>(cos(c_lat) * cos(c_lon), cos(c_lat) * sin(c_lon), sin(c_lat)) * EARTH_R;
+    let p = up * (EARTH_R + h) - c;
     return p - dir * (dot(p, dir) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
 }
 
@@ -267,6 +325,15 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
     let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
     let nq = drifted(np, max(k, 0));
+    if (code == T_CUMULONIMBUS && anvil_cm > 0.0) {
+        // The towers, and under the column's top the anvil's shield from the noise.
+        let trunk = tower_density(uv, ph, body_cm, nq);
+        if (ph < ANVIL_FROM) {
+            return trunk * scale;
+        }
+        let shield = anvil_cm * smoothstep(ANVIL_FROM, 0.9, ph);
+        return max(trunk, genus_density(nq, shield, ph, code, detail)) * scale;
+    }
     if (code < 0.5) {
         return layer_density(nq, cm, ph, detail) * scale;
     }

@@ -37,6 +37,10 @@ pub struct Shape {
     /// profile as tall as its column lets the noise's peaks at any height through, so the
     /// raw coverage would turn opaque at a fifth.
     pub gamma: f32,
+    /// Cells per shape-noise period (render::frame::SHAPE_PERIOD_M, 24 km): an integer, so
+    /// the camera-relative noise position keeps wrapping seamlessly. A cumulus field is cells
+    /// of a few kilometres, a stratus deck's relief tens of kilometres.
+    pub freq: f32,
 }
 
 /// The genus' shape. Sources of the shapes: Schneider's Nubis height gradients (stratus a thin
@@ -47,30 +51,31 @@ pub struct Shape {
 /// D puts a full cirrus column near τ 3 (ISCCP cirrus: τ < 3.6) and cirrostratus near 8.
 pub fn shape(t: CloudType) -> Shape {
     use CloudType::*;
-    let s = |base_ramp, top_from, plateau, anvil, density, gamma| Shape {
+    let s = |base_ramp, top_from, plateau, anvil, density, gamma, freq| Shape {
         base_ramp,
         top_from,
         plateau,
         anvil,
         density,
         gamma,
+        freq,
     };
     match t {
         // Thin ice, streaked by the march along the wind.
-        Cirrus => s(0.2, 0.45, 0.85, 0.0, 0.3, 2.1),
-        Cirrocumulus => s(0.15, 0.4, 0.9, 0.0, 0.3, 2.1),
-        Cirrostratus => s(0.1, 0.7, 1.0, 0.0, 0.4, 2.3),
-        Altocumulus => s(0.05, 0.35, 1.0, 0.0, 0.8, 2.31),
-        Altostratus => s(0.04, 0.7, 1.0, 0.0, 0.9, 2.31),
-        Nimbostratus => s(0.03, 0.8, 1.05, 0.0, 1.0, 2.5),
+        Cirrus => s(0.2, 0.45, 0.85, 0.0, 0.3, 2.1, 2.0),
+        Cirrocumulus => s(0.15, 0.4, 0.9, 0.0, 0.3, 2.1, 4.0),
+        Cirrostratus => s(0.1, 0.7, 1.0, 0.0, 0.4, 2.3, 2.0),
+        Altocumulus => s(0.05, 0.35, 1.0, 0.0, 0.8, 2.31, 3.0),
+        Altostratus => s(0.04, 0.7, 1.0, 0.0, 0.9, 2.31, 1.0),
+        Nimbostratus => s(0.03, 0.8, 1.05, 0.0, 1.0, 2.5, 1.0),
         // Rounded tops over a flat base: rolls.
-        Stratocumulus => s(0.04, 0.45, 1.0, 0.0, 0.9, 2.31),
+        Stratocumulus => s(0.04, 0.45, 1.0, 0.0, 0.9, 2.31, 2.0),
         // A slab: the top is relief on the deck, not a lid.
-        Stratus => s(0.03, 0.75, 1.0, 0.0, 1.0, 2.31),
+        Stratus => s(0.03, 0.75, 1.0, 0.0, 1.0, 2.31, 1.0),
         // Flat base, narrowing all the way up: domes and towers.
-        Cumulus => s(0.04, 0.25, 1.0, 0.0, 1.0, 2.31),
+        Cumulus => s(0.04, 0.25, 1.0, 0.0, 1.0, 2.31, 3.0),
         // Full height, narrower in the middle, widened under the top for the anvil.
-        Cumulonimbus => s(0.03, 0.97, 0.85, 0.5, 1.0, 2.71),
+        Cumulonimbus => s(0.03, 0.97, 0.85, 0.5, 1.0, 2.71, 1.0),
     }
 }
 
@@ -97,7 +102,7 @@ impl Shape {
     }
 }
 
-/// The table's texels, row-major, RGBA: (P, D, γ, 0); row 0 all zero.
+/// The table's texels, row-major, RGBA: (P, D, γ, cell frequency); row 0 all zero.
 pub fn table() -> Vec<[f32; 4]> {
     let mut t = vec![[0.0; 4]; LUT_WIDTH * LUT_ROWS];
     for ty in CloudType::ALL {
@@ -105,7 +110,7 @@ pub fn table() -> Vec<[f32; 4]> {
         let row = ty.code() as usize;
         for i in 0..LUT_WIDTH {
             let h = i as f32 / (LUT_WIDTH - 1) as f32;
-            t[row * LUT_WIDTH + i] = [s.coverage(h), s.density_at(h), s.gamma, 0.0];
+            t[row * LUT_WIDTH + i] = [s.coverage(h), s.density_at(h), s.gamma, s.freq];
         }
     }
     t
