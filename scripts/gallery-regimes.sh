@@ -39,10 +39,10 @@ shot overcast-above --camera 46.0,-50.5,6000 --heading 20 --pitch -20
 shot overcast-below --camera 46.5,-50.0,50 --heading 20 --pitch 20
 # 3: cumulus, 45N 47.5W (low 0.72, 827-1585 m), from 3 km looking down 25°.
 shot cumulus --camera 44.8,-47.8,3000 --heading 30 --pitch -25
-# 4: the cumulonimbus band along 50-51N 26-22W (anvil through GFS's convective cloud), from
-# 6 km, 145 km to the south-south-east, looking NNW and 4° up.
-shot cumulonimbus --camera 48.7,-23.5,6000 --heading 345 --pitch 4
-# 5: cirrus, 44N 3.5W (high 0.43, 10.1-13.0 km, nothing below), from the ground looking N 30° up.
-# (300 m: the ground there stands at 254 m since issue 14; the left half was made at 50 m over the old sea-level ground.)
+# 4: the cumulonimbus cluster at 49-51.5N 26-22W (towers through GFS's convective cloud under
+# their anvils), from 4 km at its south-eastern edge, looking NNW and 3° up.
+shot cumulonimbus --camera 48.5,-23.0,4000 --heading 340 --pitch 3
+# 5: cirrus, 44N 3.5W (high 0.29, 10.1-12.9 km, nothing below), from 300 m (the ground there
+# stands at 254 m since issue 14) looking N 30° up.
 shot cirrus --camera 44.0,-3.5,300 --heading 0 --pitch 30
 echo "gallery written to $out"

@@ -32,11 +32,9 @@ const REFERENCE_THICKNESS_M: f32 = 2000.0;
 // from the column's base to its top (m).
 const STREAK_STRETCH: f32 = 8.0;
 const STREAK_SHEAR_M: f32 = 3000.0;
-// Cumulonimbus towers: their grid spacing and a trunk's radius at full coverage (km), and the
-// trunk's density (a stratus deck's is about 1; a towering cumulonimbus is far denser).
+// Cumulonimbus towers: their grid spacing and a trunk's radius at full coverage (km).
 const TOWER_SPACING_KM: f32 = 40.0;
 const TOWER_RADIUS_KM: f32 = 7.0;
-const TOWER_DENSITY: f32 = 3.0;
 // The anvil's shield (GFS's high cover over deep convection) fills the column from this height
 // fraction up: a flat sheet under the top that the towers rise into.
 const ANVIL_FROM: f32 = 0.72;
@@ -60,6 +58,9 @@ var<private> local_count: array<u32, N_COUNTERS>;
 // Set by the shadow stage's pipeline: the density is the noise's expectation, not one sample of
 // it, so the full-column light is smooth by construction (carve below).
 override MEAN_DENSITY: bool = false;
+// Off in the march's pipeline for maps without cumulonimbus (render::march::MarchPass): the
+// towers' code is compiled out, since a CPU driver pays for a branch no lane takes.
+override TOWERS: bool = true;
 
 struct Sample {
     cm: vec3<f32>,   // coverage per layer
@@ -202,17 +203,22 @@ fn hash3(c: vec2<i32>) -> vec3<f32> {
 }
 
 // Cumulonimbus towers (DESIGN §7): a deep convective column is not a field of noise but a few
-// towers, each a cauliflower trunk from the base to the forecast's convective top that spreads
-// into an anvil under it. Towers stand on a jittered grid TOWER_SPACING_KM apart (at most one a
-// cell, the nearest four cells looked at so anvils are not clipped at cell edges); a tower's
-// radius grows with the coverage of the layers it spans, and the shape noise carves its edge.
-fn tower_density(uv: vec2<f32>, ph: f32, body_cm: f32, np: vec3<f32>) -> f32 {
-    if (body_cm <= 0.0 || ph >= 1.0) {
+// towers, each a trunk from the base to the forecast's convective top that spreads into an anvil
+// under it. Towers stand on a jittered grid TOWER_SPACING_KM apart (at most one a cell, the
+// nearest four cells looked at so anvils are not clipped at cell edges); a trunk's radius grows
+// with the coverage of the layers it spans. Returned as a coverage, 1 inside a trunk falling to
+// 0 half a radius outside it, that the genus' one noise carve then shapes (the tower's edge is
+// the noise's billows, as every genus' is): no noise of its own, which a CPU driver would pay
+// for on every sample of every map (it runs both sides of a branch).
+fn tower_cover(uv: vec2<f32>, ph: f32, body_cm: f32) -> f32 {
+    if (body_cm <= 0.0) {
         return 0.0;
     }
-    let lat_span = f.region_north - f.region_south;
-    let lat = radians(f.region_north - uv.y * lat_span);
-    let g = vec2<f32>(uv.x * f.region_lon_span * cos(lat), uv.y * lat_span) * (111.2 / TOWER_SPACING_KM);
+    // The grid is fixed to the Earth (degrees from the prime meridian and the equator), so two
+    // maps of different regions put a place's towers in the same spots.
+    let lat = f.region_north - uv.y * (f.region_north - f.region_south);
+    let lon = f.region_west + uv.x * f.region_lon_span;
+    let g = vec2<f32>(lon * cos(radians(lat)), lat) * (111.2 / TOWER_SPACING_KM);
     // The trunk widens a little with height, then the anvil spreads over the top fifth.
     let widen = (0.8 + 0.2 * ph) * (1.0 + 2.5 * smoothstep(0.78, 0.95, ph));
     let r_base = TOWER_RADIUS_KM / TOWER_SPACING_KM * sqrt(body_cm);
@@ -224,14 +230,7 @@ fn tower_density(uv: vec2<f32>, ph: f32, body_cm: f32, np: vec3<f32>) -> f32 {
         let d = length(g - (vec2<f32>(cell) + 0.2 + 0.6 * hs.xy));
         t = max(t, 1.0 - d / (r_base * (0.6 + 0.8 * hs.z) * widen));
     }
-    // Beyond this no noise value (at most 1) lifts v above 0: 2.5·t + 4·(1 − 0.72) ≤ 0.
-    if (t <= -0.45) {
-        return 0.0;
-    }
-    // A flat, solid base; the top rounded by the noise.
-    let n = 0.5 * shape_noise(np * 2.0) + 0.5 * shape_noise(np * 8.0);
-    let v = sat(2.5 * t + 4.0 * (n - 0.72) - 2.0 * smoothstep(0.9, 1.0, ph)) * sat(ph / 0.03);
-    return v * TOWER_DENSITY;
+    return sat(1.0 + 2.0 * t);
 }
 
 // A cheap hash of a 200 m cell of noise space, in 0..1.
@@ -281,7 +280,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let dims = vec2<i32>(textureDimensions(st_kind));
     let kc = clamp(vec2<i32>(floor(su * vec2<f32>(dims) + (cell_hash(np) - 0.5))), vec2<i32>(0), dims - 1);
     let kind = textureLoad(st_kind, kc, 0);
-    let towers = has_flag(f, FLAG_TOWERS);
+    let towers = TOWERS && has_flag(f, FLAG_TOWERS);
     var k = -1;
     var best = 0.0;
     // The tower's body takes the coverage of the low and middle layers it spans; its anvil,
@@ -309,7 +308,9 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     if (anvil_cm > 0.0 && h >= b.a && h <= t.a) {
         base = b.a;
         top = t.a;
-        cm = mix(body_cm, anvil_cm, smoothstep(0.6, 0.85, (h - base) / max(top - base, 1.0)));
+        // The towers, and under the column's top the anvil's shield: the high layer's coverage.
+        let ph_t = (h - base) / max(top - base, 1.0);
+        cm = max(tower_cover(uv, ph_t, body_cm), anvil_cm * smoothstep(ANVIL_FROM, 0.9, ph_t));
         code = T_CUMULONIMBUS;
     } else if (k >= 0) {
         base = b[k];
@@ -325,15 +326,6 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
     let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
     let nq = drifted(np, max(k, 0));
-    if (code == T_CUMULONIMBUS && anvil_cm > 0.0) {
-        // The towers, and under the column's top the anvil's shield from the noise.
-        let trunk = tower_density(uv, ph, body_cm, nq);
-        if (ph < ANVIL_FROM) {
-            return trunk * scale;
-        }
-        let shield = anvil_cm * smoothstep(ANVIL_FROM, 0.9, ph);
-        return max(trunk, genus_density(nq, shield, ph, code, detail)) * scale;
-    }
     if (code < 0.5) {
         return layer_density(nq, cm, ph, detail) * scale;
     }

@@ -95,7 +95,12 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
 }
 
 pub struct MarchPass {
-    pipeline: wgpu::ComputePipeline,
+    /// Without and with cumulonimbus towers (the WGSL constant `TOWERS`): a CPU driver runs
+    /// both sides of every branch, so a map without towers would still pay for their code. The
+    /// towers' variant is compiled the first time a map has them.
+    pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; 2],
+    pipeline_layout: wgpu::PipelineLayout,
+    module: wgpu::ShaderModule,
     layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
@@ -127,14 +132,6 @@ impl MarchPass {
             immediate_size: 0,
         });
         let module = shader::module(dev, "march", shader::MARCH);
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("march"),
-            layout: Some(&layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
         let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniforms"),
             size: std::mem::size_of::<FrameUniforms>() as u64,
@@ -182,13 +179,37 @@ impl MarchPass {
                 R::TextureView(&profiles),
             ],
         );
-        MarchPass {
-            pipeline,
+        let pass = MarchPass {
+            pipelines: Default::default(),
+            pipeline_layout: layout,
+            module,
             layouts,
             uniforms,
             counters,
             device_bind,
-        }
+        };
+        // The common variant now, so the first frame pays no compile.
+        pass.pipeline(gpu, false);
+        pass
+    }
+
+    /// The march's pipeline with or without the towers' code (compiled once, on first use).
+    fn pipeline(&self, gpu: &Gpu, towers: bool) -> &wgpu::ComputePipeline {
+        self.pipelines[towers as usize].get_or_init(|| {
+            let constants = [("TOWERS", if towers { 1.0 } else { 0.0 })];
+            gpu.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(if towers { "march (towers)" } else { "march" }),
+                    layout: Some(&self.pipeline_layout),
+                    module: &self.module,
+                    entry_point: Some("main"),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                })
+        })
     }
 
     /// The layouts of the device's and the map's groups, which the section stage shares.
@@ -278,8 +299,12 @@ impl MarchPass {
         )
     }
 
+    /// `towers`: the frame's map has cumulonimbus towers (`flags::TOWERS`).
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
+        gpu: &Gpu,
+        towers: bool,
         enc: &mut wgpu::CommandEncoder,
         map_bind: &wgpu::BindGroup,
         target_bind: &wgpu::BindGroup,
@@ -292,7 +317,7 @@ impl MarchPass {
             label: Some("march"),
             timestamp_writes: timestamps,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(self.pipeline(gpu, towers));
         pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
         pass.set_bind_group(GROUP_MAP, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, target_bind, &[]);

@@ -738,6 +738,8 @@ impl Renderer {
         let timer = timer.as_ref();
         let split = reproject_step.is_some();
         march.encode(
+            gpu,
+            uniforms.flags & frame::flags::TOWERS != 0,
             enc,
             map_bind,
             march_bind,

@@ -75,7 +75,7 @@ pub fn shape(t: CloudType) -> Shape {
         // Flat base, narrowing all the way up: domes and towers.
         Cumulus => s(0.04, 0.25, 1.0, 0.0, 1.0, 2.31, 3.0),
         // Full height, narrower in the middle, widened under the top for the anvil.
-        Cumulonimbus => s(0.03, 0.97, 0.85, 0.5, 1.0, 2.71, 1.0),
+        Cumulonimbus => s(0.03, 0.97, 0.85, 0.5, 1.0, 2.71, 3.0),
     }
 }
 
