@@ -243,28 +243,27 @@ fn cell_hash(np: vec3<f32>) -> f32 {
 }
 
 // Streaked noise position of a point at map uv and altitude h, in a column of height fraction
-// ph, under the wind (u east, v north, m/s): the point's absolute ECEF position (from uv, good to
-// a metre, which the noise's kilometre features never show), squeezed STREAK_STRETCH times
-// along the wind and shifted downwind with height (fall streaks trail). Absolute, not the
-// camera-relative noise position: that one wraps by a whole period as the camera flies, and a
-// squeezed coordinate would jump there. Calm air (< 1 m/s) gives the plain position.
-fn streaked(uv: vec2<f32>, h: f32, ph: f32, w: vec2<f32>, np: vec3<f32>) -> vec3<f32> {
-    if (dot(w, w) < 1.0) {
-        return np;
-    }
+// ph: the point's ECEF position measured from the region's centre (from uv, good to a metre,
+// which the noise's kilometre features never show), squeezed STREAK_STRETCH times along `dir`
+// (a unit east/north direction, f.streak_dir: one for the whole region) and shifted downwind
+// with height (fall streaks trail). From a fixed centre, not the camera-relative noise
+// position: that one wraps by a whole period as the camera flies, and a squeezed coordinate
+// would jump there; and not from the point itself, whose position is radial, with no
+// component along its wind to squeeze. One direction for the region: far from the centre the
+// squeezed coordinate moves by distance × the direction's change, so a direction varying from
+// column to column (or in time) would scramble the pattern.
+fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
     let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
     let lon = radians(f.region_west + uv.x * f.region_lon_span);
     let east = vec3<f32>(-sin(lon), cos(lon), 0.0);
     let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
-    let dir = normalize(w.x * east + w.y * north);
-    // Measured from the region's centre: the point's own position is radial, with no component
-    // along its local wind to squeeze.
+    let d = dir.x * east + dir.y * north;
     let c_lat = radians(0.5 * (f.region_north + f.region_south));
     let c_lon = radians(f.region_west + 0.5 * f.region_lon_span);
     let c = vec3<f32>(cos(c_lat) * cos(c_lon), cos(c_lat) * sin(c_lon), sin(c_lat)) * EARTH_R;
     let p = up * (EARTH_R + h) - c;
-    return p - dir * (dot(p, dir) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
+    return p - d * (dot(p, d) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
 }
 
 // Density at altitude h in the column at map uv, from the column's own base, top and genus
@@ -331,8 +330,14 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     }
     var p = nq;
     if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
+        // Streaks where the column's own wind blows (calm air, < 1 m/s, has none), along the
+        // layer's one direction.
         let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
-        p = streaked(uv, h, ph, select(w.zw, w.xy, k == 2), np) + (nq - np);
+        let wl = select(w.zw, w.xy, k == 2);
+        let dir = select(f.streak_dir.zw, f.streak_dir.xy, k == 2);
+        if (dot(wl, wl) >= 1.0 && dot(dir, dir) > 0.5) {
+            p = streaked(uv, h, ph, dir) + (nq - np);
+        }
     }
     return genus_density(p, cm, ph, code, detail) * scale;
 }

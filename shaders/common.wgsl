@@ -71,6 +71,7 @@ struct Frame {
     subset_offset: vec2<f32>,   // the pixel of each subset cell marched this frame (render::reproject)
     subset_n: f32,              // subset cell side (px): 1 marches every pixel
     _pad1: f32,
+    streak_dir: vec4<f32>,      // cirrus streak direction (east, north): high in xy, middle in zw
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and

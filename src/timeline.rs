@@ -169,6 +169,14 @@ impl Timeline {
         }
     }
 
+    /// The wind cirrus is streaked along through the whole series: the first step's
+    /// region-mean winds. One direction for the flight: the streaked noise is measured from the
+    /// region's centre, so a direction turning with time would swing it by distance × angle
+    /// far from the centre, and the pattern would boil (`Settings::streak_wind`).
+    pub fn streak_wind(&self) -> PerLayer {
+        self.means[0].1
+    }
+
     /// How far each layer's noise has drifted with its mean wind from the first step to `time`
     /// (east, north m): the integral of the piecewise-linear wind.
     pub fn drift_m(&self, time: DateTime<Utc>) -> PerLayer {

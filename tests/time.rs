@@ -92,6 +92,8 @@ fn the_gpu_blend_matches_the_cpu_blend_half_way() {
     let alpha = |r: &mut Renderer, on: [bool; 3]| {
         let mut s = settings(t);
         s.layers_on = on;
+        // One streak direction for the three renders: the comparison is of the coverage.
+        s.streak_wind = Some(stratus::timeline::mean_winds(&a));
         r.render(&View::TopDown, w, h, &s).unwrap().alpha()
     };
     for (name, on) in [
@@ -154,6 +156,7 @@ fn render_time_half_way_blends_on_the_gpu() {
     let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &start);
     let mut s = settings(t);
     s.drift_m = tl.prepare(&mut r, t).unwrap();
+    s.streak_wind = Some(tl.streak_wind());
     let gpu = r.render(&View::TopDown, w, h, &s).unwrap();
     let t1 = std::time::Instant::now();
     let cpu_map = series.at(t).unwrap();
@@ -215,6 +218,7 @@ fn time_advancing_by_the_minute_does_not_pop_at_a_step_boundary() {
                 let t = t0 + Duration::minutes(from_min + i);
                 let mut s = settings(t);
                 let d = tl.prepare(&mut r, t).unwrap();
+                s.streak_wind = Some(tl.streak_wind());
                 if drift {
                     s.drift_m = d;
                 }
@@ -287,6 +291,7 @@ fn a_24_step_series_flies_with_two_steps_on_the_gpu() {
     while t <= t_end {
         let mut s = settings(t);
         s.drift_m = tl.prepare(&mut r, t).unwrap();
+        s.streak_wind = Some(tl.streak_wind());
         r.render(&View::TopDown, 64, 32, &s).unwrap();
         most = most.max(r.map_gpu_bytes());
         t += Duration::hours(2);

@@ -114,7 +114,10 @@ impl Running {
             return;
         };
         match tl.prepare(&mut self.renderer, settings.time) {
-            Ok(drift) => settings.drift_m = drift,
+            Ok(drift) => {
+                settings.drift_m = drift;
+                settings.streak_wind = Some(tl.streak_wind());
+            }
             Err(e) => {
                 self.controls.status = format!("series: {e}; the weather is held");
                 self.timeline = None;

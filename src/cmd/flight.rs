@@ -299,6 +299,7 @@ fn render_and_commit(
         }
         if let Some(tl) = &mut timeline {
             s.drift_m = tl.prepare(&mut r, s.time)?;
+            s.streak_wind = Some(tl.streak_wind());
         }
         s.frame_index = i as u32;
         let frame = r.render(&View::Perspective(cam), w, h, &s)?;

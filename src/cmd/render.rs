@@ -70,6 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let mut r = Renderer::new(a.look.gpu()?, &map);
     if let Some(tl) = &mut timeline {
         settings.drift_m = tl.prepare(&mut r, settings.time)?;
+        settings.streak_wind = Some(tl.streak_wind());
     }
     let mut out = r.render(&view, w, h, &settings)?;
     if a.repeat > 1 {

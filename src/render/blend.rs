@@ -170,8 +170,8 @@ fn wind_texels(a: Option<&MapStructure>, b: Option<&MapStructure>) -> (u32, u32,
 }
 
 /// The structure at `w` of the way from `a` to `b`: base, top and wind interpolated, the
-/// genus the nearer step's (`a` below one half, as the CPU blend), envelopes and flags the
-/// union of both (the march bounds must hold either).
+/// genus switching from `a`'s to `b`'s texel by texel at `series::genus_switch_w` (as the CPU
+/// blend), envelopes and flags the union of both (the march bounds must hold either).
 pub fn interpolate(a: &StructurePrepared, b: &StructurePrepared, w: f32) -> StructurePrepared {
     let lerp = |x: &[half::f16], y: &[half::f16]| -> Vec<half::f16> {
         x.iter()
@@ -179,14 +179,26 @@ pub fn interpolate(a: &StructurePrepared, b: &StructurePrepared, w: f32) -> Stru
             .map(|(p, q)| half::f16::from_f32(p.to_f32() + (q.to_f32() - p.to_f32()) * w))
             .collect()
     };
-    let kind = if w < 0.5 { &a.texels[2] } else { &b.texels[2] };
+    let kind: Vec<half::f16> = a.texels[2]
+        .chunks(4)
+        .zip(b.texels[2].chunks(4))
+        .enumerate()
+        .flat_map(|(k, (p, q))| {
+            if w < stratus_ingest::series::genus_switch_w(k) {
+                p
+            } else {
+                q
+            }
+        })
+        .copied()
+        .collect();
     StructurePrepared {
         width: a.width,
         height: a.height,
         texels: [
             lerp(&a.texels[0], &b.texels[0]),
             lerp(&a.texels[1], &b.texels[1]),
-            kind.clone(),
+            kind,
             lerp(&a.texels[3], &b.texels[3]),
         ],
         info: union(&a.info, &b.info),
@@ -203,6 +215,8 @@ fn union(a: &StructureInfo, b: &StructureInfo) -> StructureInfo {
         envelopes: std::array::from_fn(|k| span(a.envelopes[k], b.envelopes[k])),
         towers: span(a.towers, b.towers),
         streaks: a.streaks || b.streaks,
+        // The earlier step's: a series' flight gives its own, constant one (Settings).
+        mean_wind: a.mean_wind,
         uv_scale: a.uv_scale,
         uv_offset: a.uv_offset,
     }
@@ -223,6 +237,7 @@ mod tests {
                 envelopes: [Some((v, v + 2000.0)), None, None],
                 towers: None,
                 streaks: code == 1.0,
+                mean_wind: [[0.0; 2]; 3],
                 uv_scale: [1.0; 2],
                 uv_offset: [0.0; 2],
             },
@@ -230,13 +245,13 @@ mod tests {
     }
 
     #[test]
-    fn structure_is_interpolated_and_the_genus_is_the_nearer_steps() {
+    fn structure_is_interpolated_and_the_genus_switches_between_a_quarter_and_three() {
         let (a, b) = (prepared(1000.0, 5.0), prepared(2000.0, 1.0));
         let p = interpolate(&a, &b, 0.25);
         assert_eq!(p.texels[0][0].to_f32(), 1250.0);
         assert_eq!(p.texels[1][0].to_f32(), 2250.0);
-        assert_eq!(p.texels[2][0].to_f32(), 5.0);
-        assert_eq!(interpolate(&a, &b, 0.5).texels[2][0].to_f32(), 1.0);
+        assert_eq!(interpolate(&a, &b, 0.24).texels[2][0].to_f32(), 5.0);
+        assert_eq!(interpolate(&a, &b, 0.76).texels[2][0].to_f32(), 1.0);
         // The march bounds hold both steps' columns; a genus in either is drawn.
         assert_eq!(p.info.envelopes[0], Some((1000.0, 4000.0)));
         assert!(p.info.streaks);

@@ -113,6 +113,9 @@ crate::gpu_struct! {
         /// Side of the subset cell (px): 1 marches every pixel.
         pub subset_n: f32,
         pub _pad1: f32,
+        /// The unit direction cirrus is streaked along (east, north): the high layer's in
+        /// x, y, the middle's in z, w; zero in calm air (< 1 m/s).
+        pub streak_dir: [f32; 4],
     }
 }
 
@@ -269,6 +272,17 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         }
         if st.streaks && (s.layers_on[1] || s.layers_on[2]) {
             u.flags |= flags::STREAKS;
+            let wind = s.streak_wind.unwrap_or(st.mean_wind);
+            let unit = |w: [f64; 2]| {
+                let n = w[0].hypot(w[1]);
+                if n < 1.0 {
+                    [0.0; 2]
+                } else {
+                    [(w[0] / n) as f32, (w[1] / n) as f32]
+                }
+            };
+            let (high, mid) = (unit(wind[2]), unit(wind[1]));
+            u.streak_dir = [high[0], high[1], mid[0], mid[1]];
         }
         u.st_scale = st.uv_scale;
         u.st_offset = st.uv_offset;

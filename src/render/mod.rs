@@ -102,6 +102,10 @@ pub struct Settings {
     /// How far each layer's noise has drifted with its wind since the series' reference time
     /// (east, north m; low, middle, high): zero for a plain map (crate::timeline).
     pub drift_m: [[f64; 2]; 3],
+    /// The wind cirrus is streaked along, per layer (east, north m/s; low, middle, high): one
+    /// direction for the whole region, fixed for a flight through a series
+    /// (`Timeline::streak_wind`); `None` takes the map's mean wind.
+    pub streak_wind: Option<[[f64; 2]; 3]>,
     /// Whether a perspective frame marches a subset of its pixels and reprojects the rest from
     /// the previous frame (render::reproject): the window and `flight`; a single picture
     /// marches every pixel.
@@ -151,6 +155,7 @@ impl Settings {
             visibility_m: defaults::VISIBILITY_M,
             frame_index: 0,
             drift_m: [[0.0; 2]; 3],
+            streak_wind: None,
             reprojection: Reprojection::Off,
         }
     }

@@ -35,6 +35,9 @@ pub struct StructureInfo {
     pub towers: Option<(f32, f32)>,
     /// Whether a streaked genus (cirrus, cirrocumulus, cirrostratus) is in the map.
     pub streaks: bool,
+    /// Per layer (low, middle, high), the mean wind over the lattice (east, north m/s): the
+    /// direction cirrus is streaked along when the settings give none (a plain map).
+    pub mean_wind: [[f64; 2]; 3],
     /// Map uv → structure texture uv: `uv * scale + offset`.
     pub uv_scale: [f32; 2],
     pub uv_offset: [f32; 2],
@@ -62,6 +65,15 @@ pub const MIN_COLUMN_M: f32 = 1200.0;
 /// A column (base, top) at least [`MIN_COLUMN_M`] thick.
 fn widened((base, top): (f32, f32)) -> (f32, f32) {
     (base, top.max(base + MIN_COLUMN_M))
+}
+
+/// Per layer, the mean of the wind images over the lattice (m/s).
+fn mean_wind(s: &MapStructure) -> [[f64; 2]; 3] {
+    let n = s.wind_u.len().max(1) as f64;
+    std::array::from_fn(|c| {
+        let mean = |w: &[[u16; 3]]| w.iter().map(|x| sample_to_wind(x[c])).sum::<f64>() / n;
+        [mean(&s.wind_u), mean(&s.wind_v)]
+    })
 }
 
 fn is_streaked(code: u8) -> bool {
@@ -132,6 +144,7 @@ impl Prepared {
                 envelopes,
                 towers: None,
                 streaks: false,
+                mean_wind: [[0.0; 2]; 3],
                 uv_scale: [1.0; 2],
                 uv_offset: [0.0; 2],
             },
@@ -196,6 +209,7 @@ impl Prepared {
                 envelopes,
                 towers,
                 streaks,
+                mean_wind: mean_wind(s),
                 uv_scale,
                 uv_offset,
             },

@@ -248,14 +248,27 @@ pub fn check_compatible(a: &CloudMap, b: &CloudMap) -> std::result::Result<(), S
     Ok(())
 }
 
+/// When, as a fraction of the interval, the structure lattice's texel `k` takes the later
+/// step's cloud type: spread by a hash over 0.25..0.75, so the genera of a region change a few
+/// texels a minute rather than all at once half-way (which showed as one jump in a time-lapse:
+/// the genera differ in cell size and shape). The renderer's blend switches by the same rule.
+pub fn genus_switch_w(k: usize) -> f32 {
+    let mut x = (k as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^= x >> 31;
+    0.25 + 0.5 * ((x >> 40) as f32 / (1u64 << 24) as f32)
+}
+
 /// The moment a fraction `w` (0..=1) of the way from step `a` to step `b`, `interval_s`
 /// seconds apart (semi-Lagrangian blend): per layer, with the layer wind interpolated in time
 /// ((1 − w)·wind_a + w·wind_b, sampled along the path), `a` is sampled upwind at the point a
 /// parcel here left w·interval earlier and `b` downwind where it will be (1 − w)·interval
 /// later, then (1 − w)·a + w·b. So a front travels between the steps instead of fading out
 /// in one place and in at the next. The total (A) is the max of the blended layers, as the
-/// ingest computes it. Structure (base, top, type, winds) is the nearer step's (`a` when
-/// w < 0.5), as are the other sidecar fields; the valid time and step are the moment's.
+/// ingest computes it. Structure (base, top, winds) is the nearer step's (`a` when
+/// w < 0.5), as are the other sidecar fields; the cloud type switches from `a`'s to `b`'s
+/// texel by texel at `genus_switch_w` of the interval; the valid time and step are the moment's.
 pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<CloudMap> {
     check_compatible(a, b).map_err(IngestError::BadMap)?;
     if !(w.is_finite() && (0.0..=1.0).contains(&w)) {
@@ -292,14 +305,42 @@ pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<Clou
         _ => None,
     }
     .or_else(|| nearer.ground.clone());
+    let mut structure = nearer.structure.clone();
+    if let (Some(s), Some(sa), Some(sb)) = (&mut structure, &a.structure, &b.structure) {
+        if sa.types.len() == s.types.len() && sb.types.len() == s.types.len() {
+            for (k, t) in s.types.iter_mut().enumerate() {
+                let from = if w < f64::from(genus_switch_w(k)) {
+                    sa
+                } else {
+                    sb
+                };
+                t[..3].copy_from_slice(&from.types[k][..3]);
+            }
+        }
+    }
     let mut out = CloudMap {
         meta: nearer.meta.clone(),
         texels,
-        structure: nearer.structure.clone(),
+        structure,
         ground,
     };
     let to_moment = if w < 0.5 { w } else { w - 1.0 } * interval_s;
     shift_time(&mut out, to_moment);
     crate::pipeline::fill_stats(&mut out.meta, &out.texels);
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn genera_switch_spread_over_the_middle_half_of_the_interval() {
+        let w: Vec<f32> = (0..10_000).map(super::genus_switch_w).collect();
+        assert!(w.iter().all(|x| (0.25..0.75).contains(x)));
+        // Spread, not bunched: each tenth of the range gets about a tenth of the texels.
+        for d in 0..10 {
+            let lo = 0.25 + 0.05 * d as f32;
+            let n = w.iter().filter(|x| (lo..lo + 0.05).contains(*x)).count();
+            assert!((800..1200).contains(&n), "{n} texels switch in {lo}..{}", lo + 0.05);
+        }
+    }
 }

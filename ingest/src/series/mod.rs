@@ -20,7 +20,7 @@ use crate::cloudmap::{load_meta, CloudMap};
 use crate::error::{shown, IngestError, Result};
 use crate::meta::CloudMapMeta;
 
-pub use advect::{advect, blend};
+pub use advect::{advect, blend, genus_switch_w};
 pub use meta::{SeriesMeta, SeriesStep, SERIES_FORMAT};
 
 /// A series sidecar, checked, with its step maps' sidecars.
