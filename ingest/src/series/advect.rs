@@ -340,7 +340,11 @@ mod tests {
         for d in 0..10 {
             let lo = 0.25 + 0.05 * d as f32;
             let n = w.iter().filter(|x| (lo..lo + 0.05).contains(*x)).count();
-            assert!((800..1200).contains(&n), "{n} texels switch in {lo}..{}", lo + 0.05);
+            assert!(
+                (800..1200).contains(&n),
+                "{n} texels switch in {lo}..{}",
+                lo + 0.05
+            );
         }
     }
 }
