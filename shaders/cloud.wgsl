@@ -259,10 +259,7 @@ fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
     let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
     let d = dir.x * east + dir.y * north;
-    let c_lat = radians(0.5 * (f.region_north + f.region_south));
-    let c_lon = radians(f.region_west + 0.5 * f.region_lon_span);
-    let c = vec3<f32>(cos(c_lat) * cos(c_lon), cos(c_lat) * sin(c_lon), sin(c_lat)) * EARTH_R;
-    let p = up * (EARTH_R + h) - c;
+    let p = up * (EARTH_R + h) - f.streak_origin;
     return p - d * (dot(p, d) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
 }
 

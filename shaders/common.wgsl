@@ -72,6 +72,8 @@ struct Frame {
     subset_n: f32,              // subset cell side (px): 1 marches every pixel
     _pad1: f32,
     streak_dir: vec4<f32>,      // cirrus streak direction (east, north): high in xy, middle in zw
+    streak_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks measured from it
+    _pad2: f32,
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and

@@ -17,7 +17,6 @@ use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::Result;
 use stratus_ingest::series::meta::show_hour;
 use stratus_ingest::series::{is_series, Series};
-use stratus_ingest::structure::sample_to_wind;
 
 use crate::render::{RenderError, Renderer};
 
@@ -49,16 +48,10 @@ pub struct Timeline {
 
 /// Region-mean wind of each layer of `map` (zero without winds).
 pub fn mean_winds(map: &CloudMap) -> PerLayer {
-    let mut out = [[0.0; 2]; 3];
-    let Some(s) = map.structure.as_ref().filter(|s| s.is_whole()) else {
-        return out;
-    };
-    let n = s.wind_u.len().max(1) as f64;
-    for (c, o) in out.iter_mut().enumerate() {
-        let sum = |w: &[[u16; 3]]| w.iter().map(|x| sample_to_wind(x[c])).sum::<f64>() / n;
-        *o = [sum(&s.wind_u), sum(&s.wind_v)];
-    }
-    out
+    map.structure
+        .as_ref()
+        .filter(|s| s.is_whole())
+        .map_or([[0.0; 2]; 3], crate::render::structure::mean_wind)
 }
 
 /// Step `k` of `series`, its valid time and step the series' (a map may serve several steps

@@ -116,6 +116,10 @@ crate::gpu_struct! {
         /// The unit direction cirrus is streaked along (east, north): the high layer's in
         /// x, y, the middle's in z, w; zero in calm air (< 1 m/s).
         pub streak_dir: [f32; 4],
+        /// The region's centre on the sea-level sphere (ECEF m): where the streaked noise is
+        /// measured from (a frame constant, not worked out per sample).
+        pub streak_origin: [f32; 3],
+        pub _pad2: f32,
     }
 }
 
@@ -283,6 +287,8 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             };
             let (high, mid) = (unit(wind[2]), unit(wind[1]));
             u.streak_dir = [high[0], high[1], mid[0], mid[1]];
+            let (lat, lon) = (0.5 * (r.north + r.south), r.west + 0.5 * r.lon_span());
+            u.streak_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
         }
         u.st_scale = st.uv_scale;
         u.st_offset = st.uv_offset;

@@ -196,19 +196,9 @@ impl MarchPass {
     /// The march's pipeline with or without the towers' code (compiled once, on first use).
     fn pipeline(&self, gpu: &Gpu, towers: bool) -> &wgpu::ComputePipeline {
         self.pipelines[towers as usize].get_or_init(|| {
+            let label = if towers { "march (towers)" } else { "march" };
             let constants = [("TOWERS", if towers { 1.0 } else { 0.0 })];
-            gpu.device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(if towers { "march (towers)" } else { "march" }),
-                    layout: Some(&self.pipeline_layout),
-                    module: &self.module,
-                    entry_point: Some("main"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
-                    cache: None,
-                })
+            compute_pipeline(gpu, label, &self.pipeline_layout, &self.module, &constants)
         })
     }
 
@@ -237,17 +227,7 @@ impl MarchPass {
             immediate_size: 0,
         });
         let module = shader::module(dev, label, source);
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants,
-                ..Default::default()
-            },
-            cache: None,
-        });
+        let pipeline = compute_pipeline(gpu, label, &pipeline_layout, &module, constants);
         (pipeline, own_layout)
     }
 
@@ -324,6 +304,28 @@ impl MarchPass {
         pass.set_bind_group(super::shadow::SCENE_GROUP, scene_bind, &[]);
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
     }
+}
+
+/// A compute pipeline of `module`'s entry point `main` with these overridable constants.
+fn compute_pipeline(
+    gpu: &Gpu,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
+    gpu.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(layout),
+            module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                ..Default::default()
+            },
+            cache: None,
+        })
 }
 
 /// A frame's cloud and scene textures bound as group 1 bindings 0 and 1, what the exposure

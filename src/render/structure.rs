@@ -68,7 +68,7 @@ fn widened((base, top): (f32, f32)) -> (f32, f32) {
 }
 
 /// Per layer, the mean of the wind images over the lattice (m/s).
-fn mean_wind(s: &MapStructure) -> [[f64; 2]; 3] {
+pub fn mean_wind(s: &MapStructure) -> [[f64; 2]; 3] {
     let n = s.wind_u.len().max(1) as f64;
     std::array::from_fn(|c| {
         let mean = |w: &[[u16; 3]]| w.iter().map(|x| sample_to_wind(x[c])).sum::<f64>() / n;
