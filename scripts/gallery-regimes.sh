@@ -3,9 +3,10 @@
 # 2011-01-15 12 UTC, North Atlantic), each as one side-by-side PNG: the previous renderer
 # (left, bands) and the present one (right, per-column base/top and per-genus profiles).
 #
-# The left halves were made with the renderer at commit 12472f1. Give that binary as
-# OLD_STRATUS=/path/to/old/stratus to re-render them too; without it, the left half of each
-# existing picture is kept and only the right half is re-rendered.
+# The left halves were made with the renderer at commit 12472f1 (the cumulus shots': 5d97f77,
+# the genus columns before the cumulus cells). Give that binary as OLD_STRATUS=/path/to/old/
+# stratus (PREV_STRATUS for the cumulus shots) to re-render them too; without it, the left half
+# of each existing picture is kept and only the right half is re-rendered.
 # STRATUS=/path/to/stratus uses a prebuilt present renderer instead of `cargo build --release`.
 # Usage: [OLD_STRATUS=...] [STRATUS=...] bash scripts/gallery-regimes.sh
 set -euo pipefail
@@ -23,6 +24,7 @@ time=2011-01-15T13:40:00Z
 # shot NAME render-args...: right half always, left half with OLD_STRATUS only.
 shot() {
   local name=$1; shift
+  local old=${old_for_shot-$old}
   local args=(--map "$tmp/natl.json" --preset balanced --size 960x540 --time "$time" "$@")
   "$STRATUS" render "${args[@]}" --out "$tmp/after.png" 2> >(grep -v XDG_RUNTIME >&2)
   if [ -n "$old" ]; then
@@ -38,7 +40,11 @@ shot() {
 shot overcast-above --camera 46.0,-50.5,6000 --heading 20 --pitch -20
 shot overcast-below --camera 46.5,-50.0,50 --heading 20 --pitch 20
 # 3: cumulus, 45N 47.5W (low 0.72, 827-1585 m), from 3 km looking down 25°.
-shot cumulus --camera 44.8,-47.8,3000 --heading 30 --pitch -25
+# 3b, 3c: the same field straight down, and scattered cumulus at 40.3N 40.5W (low 0.11,
+# 1972-2517 m) from 3.8 km; with the renderer before the cumulus cells on the left.
+old_for_shot=${PREV_STRATUS:-} shot cumulus --camera 44.8,-47.8,3000 --heading 30 --pitch -25
+old_for_shot=${PREV_STRATUS:-} shot cumulus-nadir --camera 44.8,-47.8,3000 --heading 30 --pitch -89
+old_for_shot=${PREV_STRATUS:-} shot cumulus-scattered --camera 40.3,-40.5,3800 --heading 30 --pitch -30
 # 4: the cumulonimbus cluster at 49-51.5N 26-22W (towers through GFS's convective cloud under
 # their anvils), from 4 km at its south-eastern edge, looking NNW and 3° up.
 shot cumulonimbus --camera 48.5,-23.0,4000 --heading 340 --pitch 3

@@ -15,10 +15,11 @@ cargo build --release -q
 s=target/release/stratus
 $s ingest "$gfs" --region 30,70,-60,40 --size 1600x640 --out "$tmp/natl.png" >/dev/null
 $s ingest "$gfs" --region -10,30,120,180 --size 1200x800 --out "$tmp/wpac.png" >/dev/null
-c() { $s section --preset "$preset" --size 1000x400 --time 2011-01-15T12:00:00Z "$@" 2>/dev/null; }
+# c ARGS...: one section, 1000x400 unless size=WxH is set for the call.
+c() { $s section --preset "$preset" --size "${size:-1000x400}" --time 2011-01-15T12:00:00Z "$@" 2> >(grep -v XDG_RUNTIME >&2); }
 c --map "$tmp/natl.json" --from 50,-45 --to 50,-5 --top-m 14000 --out "$out/natl-cb-50n.png"
 # Issue 13's towers: across the band of convective cells north of 50N, 25-22W, at 0.4 km a pixel.
-c --map "$tmp/natl.json" --from 48.7,-23.5 --to 51.5,-24.5 --top-m 10000 --size 800x300 --out "$out/natl-cb-towers.png"
+size=800x300 c --map "$tmp/natl.json" --from 48.7,-23.5 --to 51.5,-24.5 --top-m 10000 --out "$out/natl-cb-towers.png"
 c --map "$tmp/natl.json" --from 30,-25 --to 65,-25 --top-m 14000 --out "$out/natl-25w-meridian.png"
 c --map "$tmp/natl.json" --from 55,20 --to 55,40 --top-m 12000 --out "$out/russia-overcast-55n.png"
 c --map "$tmp/natl.json" --from 45,-20 --to 45,10 --top-m 15000 --out "$out/biscay-cirrus-45n.png"

@@ -8,6 +8,7 @@
 @group(0) @binding(4) var repeat_lin: sampler;
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, N_COUNTERS>;
 @group(0) @binding(6) var profiles: texture_2d<f32>;     // per genus row: (P, D) by height fraction
+@group(0) @binding(7) var cells: texture_2d<f32>;        // cumulus cells (render::cells): rank, height
 @group(1) @binding(0) var weather: texture_2d<f32>;      // R low, G middle, B high, A total
 @group(1) @binding(1) var coarse: texture_2d<f32>;       // max total cover per cell, dilated
 // The map's structure (render::structure): R/G/B low/middle/high, A the convective cloud.
@@ -23,6 +24,7 @@
 // Genus codes (stratus_ingest::weather::CloudType) and the profile table's rows.
 const T_CIRRUS: f32 = 1.0;
 const T_CIRROSTRATUS: f32 = 3.0;
+const T_CUMULUS: f32 = 9.0;
 const T_CUMULONIMBUS: f32 = 10.0;
 const PROFILE_ROWS: f32 = 11.0;
 const PROFILE_WIDTH: f32 = 64.0;
@@ -35,6 +37,16 @@ const STREAK_SHEAR_M: f32 = 3000.0;
 // Cumulonimbus towers: their grid spacing and a trunk's radius at full coverage (km).
 const TOWER_SPACING_KM: f32 = 40.0;
 const TOWER_RADIUS_KM: f32 = 7.0;
+// Cumulus cells: the field's period on the ground (render::cells::PERIOD_M, m); how sharp a
+// cell's surface is (the noise moves it by ±0.5/CELL_EDGE of the cell's size, every way); the
+// density inside a cell; the billows' noise, this many times finer than the shape period
+// (an integer, as Shape::freq: about 500 m lumps).
+const CELL_PERIOD_M: f32 = 48000.0;
+const CELL_EDGE: f32 = 1.6;
+const CELL_DENSITY: f32 = 1.5;
+const CELL_FREQ: f32 = 8.0;
+const CELL_MID: f32 = 0.8;
+const CELL_MIN_M: f32 = 1000.0;
 // The anvil's shield (GFS's high cover over deep convection) fills the column from this height
 // fraction up: a flat sheet under the top that the towers rise into.
 const ANVIL_FROM: f32 = 0.72;
@@ -61,6 +73,8 @@ override MEAN_DENSITY: bool = false;
 // Off in the march's pipeline for maps without cumulonimbus (render::march::MarchPass): the
 // towers' code is compiled out, since a CPU driver pays for a branch no lane takes.
 override TOWERS: bool = true;
+// Off likewise for maps without cumulus: the cells' lookup is compiled out.
+override CELLS: bool = true;
 
 struct Sample {
     cm: vec3<f32>,   // coverage per layer
@@ -220,7 +234,7 @@ fn tower_cover(uv: vec2<f32>, ph: f32, body_cm: f32) -> f32 {
     let lon = f.region_west + uv.x * f.region_lon_span;
     let g = vec2<f32>(lon * cos(radians(lat)), lat) * (111.2 / TOWER_SPACING_KM);
     // The trunk widens a little with height, then the anvil spreads over the top fifth.
-    let widen = (0.8 + 0.2 * ph) * (1.0 + 2.5 * smoothstep(0.78, 0.95, ph));
+    let widen = (0.8 + 0.2 * ph) * (1.0 + 2.0 * smoothstep(0.78, 0.95, ph));
     let r_base = TOWER_RADIUS_KM / TOWER_SPACING_KM * sqrt(body_cm);
     let o = vec2<i32>(floor(g - 0.5));
     var t = -1.0;
@@ -230,7 +244,7 @@ fn tower_cover(uv: vec2<f32>, ph: f32, body_cm: f32) -> f32 {
         let d = length(g - (vec2<f32>(cell) + 0.2 + 0.6 * hs.xy));
         t = max(t, 1.0 - d / (r_base * (0.6 + 0.8 * hs.z) * widen));
     }
-    return sat(1.0 + 2.0 * t);
+    return sat(0.5 + 2.0 * t);
 }
 
 // A cheap hash of a 200 m cell of noise space, in 0..1.
@@ -259,8 +273,49 @@ fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
     let north = vec3<f32>(-sin(lat) * cos(lon), -sin(lat) * sin(lon), cos(lat));
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
     let d = dir.x * east + dir.y * north;
-    let p = up * (EARTH_R + h) - f.streak_origin;
+    let p = up * (EARTH_R + h) - f.region_origin;
     return p - d * (dot(p, d) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
+}
+
+// Where map uv is on the plane tangent to the sea-level sphere at the region's centre (m, east
+// and north of it), less a shift (ECEF m, a layer's drift): a flat frame for the cumulus
+// cells, fixed to the Earth, square to a few per cent over a region tens of degrees across.
+fn ground_xy(uv: vec2<f32>, shift: vec3<f32>) -> vec2<f32> {
+    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
+    let lon = radians(f.region_west + uv.x * f.region_lon_span);
+    let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
+    let u0 = normalize(f.region_origin);
+    let e0 = normalize(vec3<f32>(-u0.y, u0.x, 0.0));
+    let n0 = cross(u0, e0);
+    let p = up * EARTH_R - f.region_origin - shift;
+    return vec2<f32>(dot(p, e0), dot(p, n0));
+}
+
+// A cumulus column (DESIGN §7): inside a cell of the field (render::cells) a half-ellipsoid
+// on the column's flat base, as wide as the cell and as tall as the cell's own height; between
+// the cells clear air. A fraction cm of the ground lies inside cells, so a broken field seen
+// from above shows the ground between its clouds. The noise moves the dome's surface in and
+// out (billows, lumpy outlines), and only that: where the cells stand is the field's, the same
+// at every height.
+fn cumulus_density(uv: vec2<f32>, np: vec3<f32>, shift: vec3<f32>, cm: f32, ph: f32, thick: f32, detail: bool) -> f32 {
+    let c = textureSampleLevel(cells, repeat_lin, ground_xy(uv, shift) / CELL_PERIOD_M, 0.0);
+    // The field's rank is the area nearer the core, so 1 − (rank over the threshold, per
+    // coverage) grows as the squared distance from the core: rho is about that distance over
+    // the cell's radius (past 1 between cells).
+    let rho2 = 1.0 - (c.r - (1.0 - cm)) / max(cm, 0.05);
+    // The cell's height (m): its own share of the column, at least CELL_MIN_M (a shallower
+    // dome is thinner than a fast march's stride, which then draws a field at a fraction of its
+    // coverage), lower where the cells are small (scattered: their width goes as √cm).
+    let tall = min(max(0.9 * c.g * thick, CELL_MIN_M), 0.9 * thick) * min(sqrt(cm / 0.4), 1.0);
+    let z = ph * thick / max(tall, 50.0);
+    // Distance inside the dome's surface, in the dome's own units (0 on it, 1 at its core).
+    let inside = 1.0 - sqrt(max(rho2, 0.0) + z * z * z);
+    if (inside * CELL_EDGE < CELL_MID - 1.0) {
+        return 0.0;
+    }
+    // Solid from the base (60 % at once), the billows' relief on the surface.
+    let gd = CELL_DENSITY * (0.6 + 0.4 * sat(2.0 * ph));
+    return carve(np, 1.0, CELL_MID - inside * CELL_EDGE, gd, cm, ph, detail, CELL_FREQ);
 }
 
 // Density at altitude h in the column at map uv, from the column's own base, top and genus
@@ -324,6 +379,11 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let nq = drifted(np, max(k, 0));
     if (code < 0.5) {
         return layer_density(nq, cm, ph, detail) * scale;
+    }
+    if (CELLS && has_flag(f, FLAG_CELLS) && code == T_CUMULUS) {
+        // A cell's density is the cloud's own, not normalised to the column: its coverage is
+        // its area.
+        return cumulus_density(uv, nq, np - nq, cm, ph, thick, detail) * f.density_mul;
     }
     var p = nq;
     if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {

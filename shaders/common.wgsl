@@ -72,7 +72,7 @@ struct Frame {
     subset_n: f32,              // subset cell side (px): 1 marches every pixel
     _pad1: f32,
     streak_dir: vec4<f32>,      // cirrus streak direction (east, north): high in xy, middle in zw
-    streak_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks measured from it
+    region_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks and cumulus cells measured from it
     _pad2: f32,
 };
 
@@ -122,6 +122,7 @@ const FLAG_STRUCTURE: u32 = 128u; // per-pixel base, top and genus (columns, not
 const FLAG_TOWERS: u32 = 256u;  // the map holds cumulonimbus towers
 const FLAG_STREAKS: u32 = 512u; // the map holds cirrus-like genera, streaked along the wind
 const FLAG_BLEND: u32 = 1024u;  // two forecast steps blended along the layer winds (render::blend)
+const FLAG_CELLS: u32 = 2048u;  // the map holds cumulus: cells (render::cells)
 
 fn has_flag(f: Frame, bit: u32) -> bool {
     return (f.flags & bit) != 0u;

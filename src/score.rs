@@ -1,5 +1,12 @@
-//! Render-vs-map similarity (DESIGN §5): threshold two coverage images into masks and compare
-//! them with the Dice coefficient (paper eq. 28), IoU, precision and recall; draw a diff image.
+//! Render-vs-map similarity (DESIGN §5): average the top-down render's opacity and the map's
+//! coverage over blocks of pixels, threshold both into masks and compare them with the Dice
+//! coefficient (paper eq. 28), IoU, precision and recall; draw a diff image.
+//!
+//! Blocks, not single rays: a coverage is a fraction of the area under cloud, and a broken
+//! cumulus field draws it as separate cells with clear air between them (render::cells), so
+//! one ray per pixel meets cloud with probability c and a pixel of coverage 0.7 is clear three
+//! times in ten. The mean over a block of rays is that area fraction, as a satellite pixel's
+//! cloud fraction is (docs/score.md).
 
 use serde::Serialize;
 use stratus_ingest::cloudmap::CloudMap;
@@ -62,6 +69,32 @@ pub fn mask(values: &[f32], threshold: f32) -> Vec<bool> {
     values.iter().map(|&v| v > threshold).collect()
 }
 
+/// Pixels per side of the score's blocks by default: 16 rays a block, so a broken field's
+/// fraction is read to about ±0.1 (binomial, n = 16), and the East Asia and North Atlantic gate
+/// renders (520×440) still give 130×110 blocks.
+pub const BLOCK: u32 = 4;
+
+/// Means of the `k`×`k` blocks of a `w`×`h` image, row-major; blocks cut by the right or bottom
+/// edge average the pixels they hold. Returns the means and the blocks' grid size.
+pub fn block_mean(values: &[f32], (w, h): (u32, u32), k: u32) -> (Vec<f32>, (u32, u32)) {
+    let k = k.max(1) as usize;
+    let (w, h) = (w as usize, h as usize);
+    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
+    let mut sum = vec![0.0f64; bw * bh];
+    let mut n = vec![0u32; bw * bh];
+    for (i, &v) in values.iter().enumerate().take(w * h) {
+        let b = (i / w / k) * bw + (i % w) / k;
+        sum[b] += v as f64;
+        n[b] += 1;
+    }
+    let means = sum
+        .iter()
+        .zip(&n)
+        .map(|(&s, &c)| (s / c.max(1) as f64) as f32)
+        .collect();
+    (means, (bw as u32, bh as u32))
+}
+
 /// Diff picture, RGB8: both = white, render only = orange, map only = blue, neither = black.
 pub fn diff_image(render: &[bool], map: &[bool]) -> Vec<[u8; 3]> {
     render
@@ -80,8 +113,8 @@ impl Report {
     /// The total's [`diff_image`] as an opaque picture.
     pub fn diff_picture(&self) -> image::RgbaImage {
         let px = diff_image(&self.total.render_mask, &self.total.map_mask);
-        let w = self.width;
-        image::RgbaImage::from_fn(self.width, self.height, |x, y| {
+        let w = self.mask_width;
+        image::RgbaImage::from_fn(self.mask_width, self.mask_height, |x, y| {
             let p = px.get((y * w + x) as usize).copied().unwrap_or([0; 3]);
             image::Rgba([p[0], p[1], p[2], 255])
         })
@@ -145,8 +178,13 @@ pub struct Scored {
 pub struct Report {
     pub map: String,
     pub preset: String,
+    /// The render's size (pixels).
     pub width: u32,
     pub height: u32,
+    /// Pixels per side of a block, and the masks' size in blocks (what the counts count).
+    pub block: u32,
+    pub mask_width: u32,
+    pub mask_height: u32,
     pub render_threshold: f32,
     pub map_threshold: f32,
     pub total: Scored,
@@ -179,16 +217,18 @@ fn scored(layer: &str, render: Vec<bool>, map: Vec<bool>) -> Scored {
 }
 
 /// Render the map top-down (all layers, then each present layer alone) and score each render
-/// against the map's matching channel.
+/// against the map's matching channel, both averaged over `block`×`block` pixels.
 pub fn score(
     renderer: &mut Renderer,
     map: &CloudMap,
     settings: &Settings,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    block: u32,
     thresholds: (f32, f32),
 ) -> Result<Report, RenderError> {
     let (rt, mt) = thresholds;
+    let size = (width, height);
+    let mut blocks = size;
     let mut one =
         |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
             let mut s = settings.clone();
@@ -196,9 +236,10 @@ pub fn score(
                 *on &= wanted;
             }
             let out = renderer.render(&View::TopDown, width, height, &s)?;
-            let render = mask(&out.alpha(), rt);
-            let m = map_channel(map, channel, width, height);
-            Ok(scored(name, render, mask(&m, mt)))
+            let (opacity, grid) = block_mean(&out.alpha(), size, block);
+            let (coverage, _) = block_mean(&map_channel(map, channel, width, height), size, block);
+            blocks = grid;
+            Ok(scored(name, mask(&opacity, rt), mask(&coverage, mt)))
         };
     let total = one([true; 3], 3, "total")?;
     let mut layers = Vec::new();
@@ -212,6 +253,9 @@ pub fn score(
         preset: String::new(),
         width,
         height,
+        block: block.max(1),
+        mask_width: blocks.0,
+        mask_height: blocks.1,
         render_threshold: rt,
         map_threshold: mt,
         total,
@@ -245,6 +289,36 @@ mod tests {
         assert_eq!(s.recall, 0.0);
         assert_eq!(s.precision, 1.0);
         assert!(s.dice.is_finite() && s.iou.is_finite());
+    }
+
+    #[test]
+    fn block_means_average_what_each_block_holds() {
+        // 5×3 in 2×2 blocks: a 3×2 grid, the right column and bottom row partial.
+        let v: Vec<f32> = (0..15).map(|i| i as f32).collect();
+        let (m, grid) = block_mean(&v, (5, 3), 2);
+        assert_eq!(grid, (3, 2));
+        assert_eq!(m, vec![3.0, 5.0, 6.5, 11.0, 12.5, 14.0]);
+        // One-pixel blocks are the image itself.
+        assert_eq!(block_mean(&v, (5, 3), 1).0, v);
+    }
+
+    #[test]
+    fn a_broken_field_is_its_area_fraction_in_blocks() {
+        // One ray in three hits an opaque cell in the west half, two in three in the east: per
+        // ray both halves have cloud and clear pixels, in blocks only the east is cloud.
+        let (w, h) = (12u32, 12u32);
+        let v: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let hit = (x + y) % 3 == 0;
+                (if x < 6 { hit } else { !hit }) as u32 as f32
+            })
+            .collect();
+        let (m, _) = block_mean(&v, (w, h), 3);
+        let cloud = mask(&m, RENDER_THRESHOLD);
+        for (b, on) in cloud.iter().enumerate() {
+            assert_eq!(*on, b % 4 >= 2, "block {b}: {}", m[b]);
+        }
     }
 
     #[test]

@@ -81,26 +81,27 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         )?;
     }
     pb.finish_and_clear();
-    let (sw, sh) = score::default_size(&map);
     let report = score::score(
         &mut r,
         &map,
         &settings,
-        sw,
-        sh,
+        score::default_size(&map),
+        score::BLOCK,
         (score::RENDER_THRESHOLD, score::MAP_THRESHOLD),
     )?;
     let diff = a.out.join("score-diff.png");
     save_png(&diff, &report.diff_picture())?;
     let m = &report.total.similarity;
     out!(
-        "Dice {:.4} (IoU {:.4}, precision {:.4}, recall {:.4}) top-down {}×{} vs the map; diff in {}",
+        "Dice {:.4} (IoU {:.4}, precision {:.4}, recall {:.4}) top-down {}×{} in {}×{} blocks vs the map; diff in {}",
         m.dice,
         m.iou,
         m.precision,
         m.recall,
-        sw,
-        sh,
+        report.width,
+        report.height,
+        report.block,
+        report.block,
         shown(&diff)
     )?;
     out!("done in {:.1} s", t0.elapsed().as_secs_f64())?;

@@ -27,6 +27,10 @@ pub struct Args {
     /// Render size WxH (default: the map's, at most 1024 on the longer side).
     #[arg(long = "score-size")]
     pub score_size: Option<String>,
+    /// Pixels per side of the blocks the render's opacity and the map's coverage are averaged
+    /// over before the masks: a cloud fraction per block, as a satellite pixel's (1: per ray).
+    #[arg(long, default_value_t = score::BLOCK, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub block: u32,
     #[command(flatten)]
     pub look: LookOpts,
     /// Opacity above which a rendered pixel counts as cloud.
@@ -61,10 +65,14 @@ pub fn load_or_ingest(
 
 pub fn print_report(r: &Report) -> std::io::Result<()> {
     out!(
-        "{} top-down {}×{} ({} preset), render opacity > {} vs map coverage > {}",
+        "{} top-down {}×{} in {}×{} blocks ({}×{}, {} preset), render opacity > {} vs map coverage > {}",
         r.map,
         r.width,
         r.height,
+        r.block,
+        r.block,
+        r.mask_width,
+        r.mask_height,
         r.preset,
         r.render_threshold,
         r.map_threshold
@@ -76,8 +84,8 @@ pub fn print_report(r: &Report) -> std::io::Result<()> {
         "IoU",
         "precision",
         "recall",
-        "render px",
-        "map px"
+        "render #",
+        "map #"
     )?;
     for s in std::iter::once(&r.total).chain(&r.layers) {
         let m = &s.similarity;
@@ -138,8 +146,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         &mut renderer,
         &map,
         &settings,
-        w,
-        h,
+        (w, h),
+        a.block,
         (a.render_threshold, a.map_threshold),
     )?;
     report.preset = a.look.preset.name().into();

@@ -215,6 +215,7 @@ fn union(a: &StructureInfo, b: &StructureInfo) -> StructureInfo {
         envelopes: std::array::from_fn(|k| span(a.envelopes[k], b.envelopes[k])),
         towers: span(a.towers, b.towers),
         streaks: a.streaks || b.streaks,
+        cells: a.cells || b.cells,
         // The earlier step's: a series' flight gives its own, constant one (Settings).
         mean_wind: a.mean_wind,
         uv_scale: a.uv_scale,
@@ -237,6 +238,7 @@ mod tests {
                 envelopes: [Some((v, v + 2000.0)), None, None],
                 towers: None,
                 streaks: code == 1.0,
+                cells: code == 9.0,
                 mean_wind: [[0.0; 2]; 3],
                 uv_scale: [1.0; 2],
                 uv_offset: [0.0; 2],

@@ -104,6 +104,9 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("FLAG_STRUCTURE", U32(flags::STRUCTURE)),
         ("FLAG_TOWERS", U32(flags::TOWERS)),
         ("FLAG_STREAKS", U32(flags::STREAKS)),
+        ("FLAG_BLEND", U32(flags::BLEND)),
+        ("FLAG_CELLS", U32(flags::CELLS)),
+        ("CELL_PERIOD_M", F32(super::cells::PERIOD_M)),
         (
             "REFERENCE_THICKNESS_M",
             F32(super::frame::REFERENCE_THICKNESS_M),
@@ -113,6 +116,7 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("T_CIRRUS", F32(CloudType::Cirrus.code() as f32)),
         ("T_CIRROSTRATUS", F32(CloudType::Cirrostratus.code() as f32)),
         ("T_CUMULONIMBUS", F32(CloudType::Cumulonimbus.code() as f32)),
+        ("T_CUMULUS", F32(CloudType::Cumulus.code() as f32)),
         (
             "N_COUNTERS",
             U32((std::mem::size_of::<Counters>() / 4) as u32),

@@ -116,9 +116,9 @@ crate::gpu_struct! {
         /// The unit direction cirrus is streaked along (east, north): the high layer's in
         /// x, y, the middle's in z, w; zero in calm air (< 1 m/s).
         pub streak_dir: [f32; 4],
-        /// The region's centre on the sea-level sphere (ECEF m): where the streaked noise is
-        /// measured from (a frame constant, not worked out per sample).
-        pub streak_origin: [f32; 3],
+        /// The region's centre on the sea-level sphere (ECEF m): where the streaked noise and
+        /// the cumulus cells are measured from (a frame constant, not worked out per sample).
+        pub region_origin: [f32; 3],
         pub _pad2: f32,
     }
 }
@@ -147,6 +147,8 @@ pub mod flags {
     pub const STREAKS: u32 = 512;
     /// Two forecast steps are blended, the coverage carried along the layer winds.
     pub const BLEND: u32 = 1024;
+    /// The map holds cumulus: its columns are cells (render::cells).
+    pub const CELLS: u32 = 2048;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -274,6 +276,9 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             lo = lo.min(base);
             hi = hi.max(top);
         }
+        if st.cells && u.layer_scale.iter().any(|&v| v > 0.0) {
+            u.flags |= flags::CELLS;
+        }
         if st.streaks && (s.layers_on[1] || s.layers_on[2]) {
             u.flags |= flags::STREAKS;
             let wind = s.streak_wind.unwrap_or(st.mean_wind);
@@ -287,9 +292,9 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             };
             let (high, mid) = (unit(wind[2]), unit(wind[1]));
             u.streak_dir = [high[0], high[1], mid[0], mid[1]];
-            let (lat, lon) = (0.5 * (r.north + r.south), r.west + 0.5 * r.lon_span());
-            u.streak_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
         }
+        let (lat, lon) = (0.5 * (r.north + r.south), r.west + 0.5 * r.lon_span());
+        u.region_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
         u.st_scale = st.uv_scale;
         u.st_offset = st.uv_offset;
     } else {

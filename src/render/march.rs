@@ -47,6 +47,8 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_DEVICE, 5, Resource::StorageRw),
     // The genus profiles (render::profile).
     b(GROUP_DEVICE, 6, Resource::Texture2d { filterable: true }),
+    // The cumulus cells (render::cells).
+    b(GROUP_DEVICE, 7, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 0, Resource::Texture2d { filterable: true }),
     // The coarse map is R32Float: loaded, never filtered.
     b(GROUP_MAP, 1, Resource::Texture2d { filterable: false }),
@@ -94,11 +96,34 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     })
 }
 
+/// Which of the genera's optional code the march compiles in (the WGSL constants `TOWERS` and
+/// `CELLS`): the frame's map has cumulonimbus towers, cumulus cells.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Variant {
+    pub towers: bool,
+    pub cells: bool,
+}
+
+impl Variant {
+    /// The variant a frame's flags (`frame::flags`) need.
+    pub fn of(flags: u32) -> Variant {
+        use super::frame::flags as fl;
+        Variant {
+            towers: flags & fl::TOWERS != 0,
+            cells: flags & fl::CELLS != 0,
+        }
+    }
+
+    fn index(self) -> usize {
+        self.towers as usize | (self.cells as usize) << 1
+    }
+}
+
 pub struct MarchPass {
-    /// Without and with cumulonimbus towers (the WGSL constant `TOWERS`): a CPU driver runs
-    /// both sides of every branch, so a map without towers would still pay for their code. The
-    /// towers' variant is compiled the first time a map has them.
-    pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; 2],
+    /// One per [`Variant`]: a CPU driver runs both sides of every branch, so a map without
+    /// towers or cumulus would still pay for their code. A variant is compiled the first time a
+    /// map needs it.
+    pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; 4],
     pipeline_layout: wgpu::PipelineLayout,
     module: wgpu::ShaderModule,
     layouts: [wgpu::BindGroupLayout; 3],
@@ -164,6 +189,7 @@ impl MarchPass {
             noise.detail.create_view(&Default::default()),
         );
         let profiles = super::profile::texture(gpu).create_view(&Default::default());
+        let cells = super::cells::texture(gpu).create_view(&Default::default());
         use wgpu::BindingResource as R;
         let device_bind = bind(
             dev,
@@ -177,6 +203,7 @@ impl MarchPass {
                 R::Sampler(&repeat_lin),
                 R::Buffer(counters.as_entire_buffer_binding()),
                 R::TextureView(&profiles),
+                R::TextureView(&cells),
             ],
         );
         let pass = MarchPass {
@@ -189,17 +216,23 @@ impl MarchPass {
             device_bind,
         };
         // The common variant now, so the first frame pays no compile.
-        pass.pipeline(gpu, false);
+        pass.pipeline(gpu, Variant::of(0));
         pass
     }
 
-    /// The march's pipeline with or without the towers' code (compiled once, on first use).
-    fn pipeline(&self, gpu: &Gpu, towers: bool) -> &wgpu::ComputePipeline {
-        self.pipelines[towers as usize].get_or_init(|| {
-            let label = if towers { "march (towers)" } else { "march" };
-            let constants = [("TOWERS", if towers { 1.0 } else { 0.0 })];
-            compute_pipeline(gpu, label, &self.pipeline_layout, &self.module, &constants)
+    /// The march's pipeline of a variant (compiled once, on first use).
+    fn pipeline(&self, gpu: &Gpu, v: Variant) -> &wgpu::ComputePipeline {
+        self.pipelines[v.index()].get_or_init(|| {
+            let label = format!("march (towers {}, cells {})", v.towers, v.cells);
+            let on = |b: bool| if b { 1.0 } else { 0.0 };
+            let constants = [("TOWERS", on(v.towers)), ("CELLS", on(v.cells))];
+            compute_pipeline(gpu, &label, &self.pipeline_layout, &self.module, &constants)
         })
+    }
+
+    /// Whether a variant's pipeline has been compiled (tests: a map selects its variant).
+    pub fn compiled(&self, v: Variant) -> bool {
+        self.pipelines[v.index()].get().is_some()
     }
 
     /// The layouts of the device's and the map's groups, which the section stage shares.
@@ -279,12 +312,12 @@ impl MarchPass {
         )
     }
 
-    /// `towers`: the frame's map has cumulonimbus towers (`flags::TOWERS`).
+    /// `variant`: the genera's code the frame's map needs ([`Variant::of`] its flags).
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         gpu: &Gpu,
-        towers: bool,
+        variant: Variant,
         enc: &mut wgpu::CommandEncoder,
         map_bind: &wgpu::BindGroup,
         target_bind: &wgpu::BindGroup,
@@ -297,7 +330,7 @@ impl MarchPass {
             label: Some("march"),
             timestamp_writes: timestamps,
         });
-        pass.set_pipeline(self.pipeline(gpu, towers));
+        pass.set_pipeline(self.pipeline(gpu, variant));
         pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
         pass.set_bind_group(GROUP_MAP, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, target_bind, &[]);

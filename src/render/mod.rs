@@ -11,6 +11,7 @@
 pub mod atmosphere;
 pub mod blend;
 pub mod camera;
+pub mod cells;
 pub mod contract;
 pub mod exposure;
 pub mod frame;
@@ -544,6 +545,12 @@ impl Renderer {
 
     /// Swap in another CloudMap. One of the same size goes into the textures already there
     /// (every rh_cr slider move); the render targets stay whatever the map.
+    /// Whether the march's pipeline of a variant has been compiled: a map needing it
+    /// compiles it on its first frame (tests check the map's genera pick the right one).
+    pub fn march_variant_compiled(&self, v: march::Variant) -> bool {
+        self.march.compiled(v)
+    }
+
     pub fn set_map(&mut self, map: &CloudMap) {
         if !self.weather.replace(&self.gpu, map) {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
@@ -744,7 +751,7 @@ impl Renderer {
         let split = reproject_step.is_some();
         march.encode(
             gpu,
-            uniforms.flags & frame::flags::TOWERS != 0,
+            march::Variant::of(uniforms.flags),
             enc,
             map_bind,
             march_bind,

@@ -189,7 +189,7 @@ impl Inputs {
         }
         // Only the flags that change the cloud itself.
         use super::frame::flags;
-        let shape = flags::STRUCTURE | flags::TOWERS | flags::STREAKS | flags::CULL;
+        let shape = flags::STRUCTURE | flags::TOWERS | flags::STREAKS | flags::CELLS | flags::CULL;
         Inputs {
             key_dir,
             look,

@@ -35,6 +35,8 @@ pub struct StructureInfo {
     pub towers: Option<(f32, f32)>,
     /// Whether a streaked genus (cirrus, cirrocumulus, cirrostratus) is in the map.
     pub streaks: bool,
+    /// Whether cumulus is in the map: its columns are cells (render::cells).
+    pub cells: bool,
     /// Per layer (low, middle, high), the mean wind over the lattice (east, north m/s): the
     /// direction cirrus is streaked along when the settings give none (a plain map).
     pub mean_wind: [[f64; 2]; 3],
@@ -54,6 +56,7 @@ pub struct Prepared {
 }
 
 const CB: u8 = CloudType::Cumulonimbus.code();
+const CU: u8 = CloudType::Cumulus.code();
 
 /// Thinnest column drawn (m): where RH crosses rh_cr between two close levels the column can
 /// be under 100 m, thinner than a fast march step, so it would flicker in and out with the
@@ -144,6 +147,7 @@ impl Prepared {
                 envelopes,
                 towers: None,
                 streaks: false,
+                cells: false,
                 mean_wind: [[0.0; 2]; 3],
                 uv_scale: [1.0; 2],
                 uv_offset: [0.0; 2],
@@ -164,6 +168,7 @@ impl Prepared {
         let (mut kind, mut wind) = (Vec::with_capacity(n * 4), Vec::with_capacity(n * 4));
         let mut towers: Option<(f32, f32)> = None;
         let mut streaks = false;
+        let mut cells = false;
         for k in 0..n {
             let alt = |v: u16, fill: f32| sample_to_altitude(v).map_or(fill, |m| m as f32);
             let col: [(f32, f32); 3] = std::array::from_fn(|c| {
@@ -184,6 +189,7 @@ impl Prepared {
                 towers = Some(towers.map_or((lo, hi), |(a, z)| (a.min(lo), z.max(hi))));
             }
             streaks |= (0..3).any(|c| has(c) && is_streaked(codes[c]));
+            cells |= (0..3).any(|c| has(c) && codes[c] == CU);
             base.extend([b[0], b[1], b[2], conv.0].map(f));
             top.extend([t[0], t[1], t[2], conv.1].map(f));
             kind.extend([codes[0], codes[1], codes[2], 0].map(|c| f(c as f32)));
@@ -209,6 +215,7 @@ impl Prepared {
                 envelopes,
                 towers,
                 streaks,
+                cells,
                 mean_wind: mean_wind(s),
                 uv_scale,
                 uv_offset,
