@@ -182,17 +182,3 @@ mod tests {
         assert!(seam < 2.0 * inner, "seam {seam} vs inner {inner}");
     }
 }
-#[cfg(test)]
-mod dump {
-    #[test]
-    #[ignore]
-    fn dump() {
-        let f = super::field();
-        let img = image::RgbImage::from_fn(super::SIZE as u32, super::SIZE as u32, |x, y| {
-            let t = f[y as usize * super::SIZE + x as usize];
-            let on = |c: f32| if t[0] > 1.0 - c { 255 } else { 0 };
-            image::Rgb([on(0.2), on(0.5), on(0.8)])
-        });
-        img.save("/tmp/w/cells.png").unwrap();
-    }
-}
