@@ -278,16 +278,16 @@ fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
 }
 
 // Where map uv is on the plane tangent to the sea-level sphere at the region's centre (m, east
-// and north of it), less a shift (ECEF m, a layer's drift): a flat frame for the cumulus
-// cells, fixed to the Earth, square to a few per cent over a region tens of degrees across.
-fn ground_xy(uv: vec2<f32>, shift: vec3<f32>) -> vec2<f32> {
+// and north of it): a flat frame for the cumulus cells, fixed to the Earth, square to a few
+// per cent over a region tens of degrees across.
+fn ground_xy(uv: vec2<f32>) -> vec2<f32> {
     let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
     let lon = radians(f.region_west + uv.x * f.region_lon_span);
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
     let u0 = normalize(f.region_origin);
     let e0 = normalize(vec3<f32>(-u0.y, u0.x, 0.0));
     let n0 = cross(u0, e0);
-    let p = up * EARTH_R - f.region_origin - shift;
+    let p = up * EARTH_R - f.region_origin;
     return vec2<f32>(dot(p, e0), dot(p, n0));
 }
 
@@ -297,8 +297,10 @@ fn ground_xy(uv: vec2<f32>, shift: vec3<f32>) -> vec2<f32> {
 // from above shows the ground between its clouds. The noise moves the dome's surface in and
 // out (billows, lumpy outlines), and only that: where the cells stand is the field's, the same
 // at every height.
-fn cumulus_density(uv: vec2<f32>, np: vec3<f32>, shift: vec3<f32>, cm: f32, ph: f32, thick: f32, detail: bool) -> f32 {
-    let c = textureSampleLevel(cells, repeat_lin, ground_xy(uv, shift) / CELL_PERIOD_M, 0.0);
+// k: the layer, whose drift (f.cell_drift, east/north modulo the tile) moves the cells.
+fn cumulus_density(uv: vec2<f32>, np: vec3<f32>, k: i32, cm: f32, ph: f32, thick: f32, detail: bool) -> f32 {
+    let drift = select(select(f.cell_drift_high.xy, f.cell_drift.zw, k == 1), f.cell_drift.xy, k == 0);
+    let c = textureSampleLevel(cells, repeat_lin, (ground_xy(uv) - drift) / CELL_PERIOD_M, 0.0);
     // The field's rank is the area nearer the core, so 1 − (rank over the threshold, per
     // coverage) grows as the squared distance from the core: rho is about that distance over
     // the cell's radius (past 1 between cells).
@@ -383,7 +385,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     if (CELLS && has_flag(f, FLAG_CELLS) && code == T_CUMULUS) {
         // A cell's density is the cloud's own, not normalised to the column: its coverage is
         // its area.
-        return cumulus_density(uv, nq, np - nq, cm, ph, thick, detail) * f.density_mul;
+        return cumulus_density(uv, nq, max(k, 0), cm, ph, thick, detail) * f.density_mul;
     }
     var p = nq;
     if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {

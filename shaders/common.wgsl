@@ -74,6 +74,8 @@ struct Frame {
     streak_dir: vec4<f32>,      // cirrus streak direction (east, north): high in xy, middle in zw
     region_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks and cumulus cells measured from it
     _pad2: f32,
+    cell_drift: vec4<f32>,      // per layer, the drift (east, north m) mod the cells' tile: low xy, middle zw
+    cell_drift_high: vec4<f32>, // the high layer's in xy
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and

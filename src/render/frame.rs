@@ -120,6 +120,13 @@ crate::gpu_struct! {
         /// the cumulus cells are measured from (a frame constant, not worked out per sample).
         pub region_origin: [f32; 3],
         pub _pad2: f32,
+        /// Per layer, the drift (east, north m) modulo the cumulus cells' tile
+        /// (render::cells::PERIOD_M): low in x, y, middle in z, w of the first, high in x, y
+        /// of the second. Not the ECEF drift above, whose components wrap by the noise's
+        /// period: projected on the cells' plane that wrap is no whole tile, and the field
+        /// would jump.
+        pub cell_drift: [f32; 4],
+        pub cell_drift_high: [f32; 4],
     }
 }
 
@@ -396,6 +403,10 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         (u.blend_w, u.blend_back_s, u.blend_ahead_s) = (b.w, b.back_s, b.ahead_s);
     }
     [u.drift_low, u.drift_mid, u.drift_high] = drift(r, &s.drift_m);
+    let cell = |k: usize| s.drift_m[k].map(|v| v.rem_euclid(super::cells::PERIOD_M as f64) as f32);
+    let (low, mid, high) = (cell(0), cell(1), cell(2));
+    u.cell_drift = [low[0], low[1], mid[0], mid[1]];
+    u.cell_drift_high = [high[0], high[1], 0.0, 0.0];
     Ok(u)
 }
 
