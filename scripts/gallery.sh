@@ -21,11 +21,11 @@ r() { $s render --preset "$preset" --size 960x540 "$@" 2> >(grep -v XDG_RUNTIME 
 r --map "$tmp/ea400.json" --camera 33.0,78.0,17600 --heading 20 --pitch -25 --time $noon --out "$out/ea400-above-noon.png"
 r --map "$tmp/ea400.json" --camera 33.0,78.0,17600 --heading 20 --pitch -25 --time $dusk --out "$out/ea400-above-dusk.png"
 r --map "$tmp/ea400.json" --camera 36.2,80.9,7300 --heading 90 --pitch 0 --time $noon --out "$out/ea400-inside.png"
-r --map "$tmp/ea400.json" --camera 34.8,80.0,50 --heading 45 --pitch 12 --time $noon --out "$out/ea400-horizon-ground.png"
+r --map "$tmp/ea400.json" --camera 34.8,80.0,ground+50 --heading 45 --pitch 12 --time $noon --out "$out/ea400-horizon-ground.png"
 r --map "$tmp/eaall.json" --camera 35.0,74.0,26500 --heading 60 --pitch -15 --time $noon --out "$out/all-above-noon.png"
 r --map "$tmp/eaall.json" --camera 35.0,74.0,26500 --heading 60 --pitch -15 --time $dusk --out "$out/all-above-dusk.png"
 r --map "$tmp/eaall.json" --camera 37.5,81.0,5000 --heading 90 --pitch 0 --time $noon --out "$out/all-inside.png"
-r --map "$tmp/eaall.json" --camera 40.0,76.0,50 --heading 120 --pitch 10 --time $noon --out "$out/all-horizon-ground.png"
+r --map "$tmp/eaall.json" --camera 40.0,76.0,ground+50 --heading 120 --pitch 10 --time $noon --out "$out/all-horizon-ground.png"
 $s render --map "$tmp/eaall.json" --top-down --size 650x550 --preset "$preset" --out "$out/all-top-down.png"
 python3 - "$tmp" "$out" <<'PY' 2>/dev/null || true
 import sys
