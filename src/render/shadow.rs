@@ -389,12 +389,6 @@ impl ShadowPass {
         &self.volumes[self.front].scene_bind
     }
 
-    /// The volumes' bytes on the GPU (two: one shown, one being made).
-    pub fn volume_bytes(&self) -> u64 {
-        let (w, h, d) = self.size;
-        2 * w as u64 * h as u64 * d as u64 * 8
-    }
-
     /// Make the volume for this frame's uniforms (already written to the march's uniform
     /// buffer before `enc` runs) if what it depends on changed; `enabled` is the preset's
     /// switch. A changed cloud makes it whole now; a moved key light starts (or goes on with)
