@@ -38,9 +38,11 @@ const STREAK_SHEAR_M: f32 = 3000.0;
 const TOWER_SPACING_KM: f32 = 40.0;
 const TOWER_RADIUS_KM: f32 = 7.0;
 // Cumulus cells: the field's period on the ground (render::cells::PERIOD_M, m); how sharp a
-// cell's surface is (the noise moves it by ±0.5/CELL_EDGE of the cell's size, every way); the
+// cell's surface is (the noise moves it by up to 1/CELL_EDGE of the cell's size, every way); the
 // density inside a cell; the billows' noise, this many times finer than the shape period
-// (an integer, as Shape::freq: about 500 m lumps).
+// (an integer, as Shape::freq: about 750 m lumps); the noise's level on the surface, set so
+// that the mean top-down opacity equals the coverage (`examples/coverage_ramp.rs`); the least
+// height of a cell (m).
 const CELL_PERIOD_M: f32 = 48000.0;
 const CELL_EDGE: f32 = 1.6;
 const CELL_DENSITY: f32 = 1.5;
@@ -291,10 +293,11 @@ fn ground_xy(uv: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(dot(p, e0), dot(p, n0));
 }
 
-// A cumulus column (DESIGN §7): inside a cell of the field (render::cells) a half-ellipsoid
-// on the column's flat base, as wide as the cell and as tall as the cell's own height; between
-// the cells clear air. A fraction cm of the ground lies inside cells, so a broken field seen
-// from above shows the ground between its clouds. The noise moves the dome's surface in and
+// A cumulus column (DESIGN §7): inside a cell of the field (render::cells) a dome on the
+// column's flat base, ρ² + z³ < 1 (steeper sides than an ellipsoid's, so no wide skirt), as
+// wide as the cell and as tall as the cell's own height; between the cells clear air. A
+// fraction cm of the ground lies inside cells, so a broken field seen from above shows the
+// ground between its clouds. The noise moves the dome's surface in and
 // out (billows, lumpy outlines), and only that: where the cells stand is the field's, the same
 // at every height.
 // k: the layer, whose drift (f.cell_drift, east/north modulo the tile) moves the cells.

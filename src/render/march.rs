@@ -129,7 +129,8 @@ pub struct MarchPass {
     layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
-    /// The device-lifetime bind group (uniforms, noise, samplers, counters).
+    /// The device-lifetime bind group (uniforms, noise, samplers, counters, genus profiles,
+    /// cumulus cells).
     device_bind: wgpu::BindGroup,
 }
 
