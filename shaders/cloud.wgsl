@@ -286,11 +286,8 @@ fn ground_xy(uv: vec2<f32>) -> vec2<f32> {
     let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
     let lon = radians(f.region_west + uv.x * f.region_lon_span);
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
-    let u0 = normalize(f.region_origin);
-    let e0 = normalize(vec3<f32>(-u0.y, u0.x, 0.0));
-    let n0 = cross(u0, e0);
     let p = up * EARTH_R - f.region_origin;
-    return vec2<f32>(dot(p, e0), dot(p, n0));
+    return vec2<f32>(dot(p, f.region_east), dot(p, f.region_north_dir));
 }
 
 // A cumulus column (DESIGN §7): inside a cell of the field (render::cells) a dome on the

@@ -76,6 +76,10 @@ struct Frame {
     _pad2: f32,
     cell_drift: vec4<f32>,      // per layer, the drift (east, north m) mod the cells' tile: low xy, middle zw
     cell_drift_high: vec4<f32>, // the high layer's in xy
+    region_east: vec3<f32>,     // east at the region's centre (unit ECEF): the cells' plane
+    _pad3: f32,
+    region_north_dir: vec3<f32>, // north there
+    _pad4: f32,
 };
 
 // The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and

@@ -127,6 +127,11 @@ crate::gpu_struct! {
         /// would jump.
         pub cell_drift: [f32; 4],
         pub cell_drift_high: [f32; 4],
+        /// East and north at the region's centre (unit ECEF vectors): the cells' plane.
+        pub region_east: [f32; 3],
+        pub _pad3: f32,
+        pub region_north_dir: [f32; 3],
+        pub _pad4: f32,
     }
 }
 
@@ -302,6 +307,9 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         }
         let (lat, lon) = (0.5 * (r.north + r.south), r.west + 0.5 * r.lon_span());
         u.region_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
+        let (east, north, _) = super::camera::enu_basis(lat, lon);
+        u.region_east = east.as_vec3().to_array();
+        u.region_north_dir = north.as_vec3().to_array();
         u.st_scale = st.uv_scale;
         u.st_offset = st.uv_offset;
     } else {
