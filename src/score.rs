@@ -77,9 +77,9 @@ pub const BLOCK: u32 = 4;
 /// Means of the `k`×`k` blocks of a `w`×`h` image, row-major; blocks cut by the right or bottom
 /// edge average the pixels they hold. Returns the means and the blocks' grid size.
 pub fn block_mean(values: &[f32], (w, h): (u32, u32), k: u32) -> (Vec<f32>, (u32, u32)) {
+    let grid = block_grid((w, h), k);
     let k = k.max(1) as usize;
-    let (w, h) = (w as usize, h as usize);
-    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
+    let (w, h, bw, bh) = (w as usize, h as usize, grid.0 as usize, grid.1 as usize);
     let mut sum = vec![0.0f64; bw * bh];
     let mut n = vec![0u32; bw * bh];
     for (i, &v) in values.iter().enumerate().take(w * h) {
@@ -92,7 +92,13 @@ pub fn block_mean(values: &[f32], (w, h): (u32, u32), k: u32) -> (Vec<f32>, (u32
         .zip(&n)
         .map(|(&s, &c)| (s / c.max(1) as f64) as f32)
         .collect();
-    (means, (bw as u32, bh as u32))
+    (means, grid)
+}
+
+/// The size in blocks of a `w`×`h` image cut into `k`×`k` blocks (partial ones counted).
+pub fn block_grid((w, h): (u32, u32), k: u32) -> (u32, u32) {
+    let k = k.max(1);
+    (w.div_ceil(k), h.div_ceil(k))
 }
 
 /// Diff picture, RGB8: both = white, render only = orange, map only = blue, neither = black.
@@ -228,7 +234,7 @@ pub fn score(
 ) -> Result<Report, RenderError> {
     let (rt, mt) = thresholds;
     let size = (width, height);
-    let mut blocks = size;
+    let grid = block_grid(size, block);
     let mut one =
         |layers_on: [bool; 3], channel: usize, name: &str| -> Result<Scored, RenderError> {
             let mut s = settings.clone();
@@ -236,9 +242,8 @@ pub fn score(
                 *on &= wanted;
             }
             let out = renderer.render(&View::TopDown, width, height, &s)?;
-            let (opacity, grid) = block_mean(&out.alpha(), size, block);
+            let (opacity, _) = block_mean(&out.alpha(), size, block);
             let (coverage, _) = block_mean(&map_channel(map, channel, width, height), size, block);
-            blocks = grid;
             Ok(scored(name, mask(&opacity, rt), mask(&coverage, mt)))
         };
     let total = one([true; 3], 3, "total")?;
@@ -254,8 +259,8 @@ pub fn score(
         width,
         height,
         block: block.max(1),
-        mask_width: blocks.0,
-        mask_height: blocks.1,
+        mask_width: grid.0,
+        mask_height: grid.1,
         render_threshold: rt,
         map_threshold: mt,
         total,

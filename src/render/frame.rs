@@ -305,7 +305,7 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
             let (high, mid) = (unit(wind[2]), unit(wind[1]));
             u.streak_dir = [high[0], high[1], mid[0], mid[1]];
         }
-        let (lat, lon) = (0.5 * (r.north + r.south), r.west + 0.5 * r.lon_span());
+        let (lat, lon) = r.centre();
         u.region_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
         let (east, north, _) = super::camera::enu_basis(lat, lon);
         u.region_east = east.as_vec3().to_array();
