@@ -46,8 +46,8 @@ old_for_shot=${PREV_STRATUS:-} shot cumulus --camera 44.8,-47.8,3000 --heading 3
 old_for_shot=${PREV_STRATUS:-} shot cumulus-nadir --camera 44.8,-47.8,3000 --heading 30 --pitch -89
 old_for_shot=${PREV_STRATUS:-} shot cumulus-scattered --camera 40.3,-40.5,3800 --heading 30 --pitch -30
 # 4: the cumulonimbus cluster at 49-51.5N 26-22W (towers through GFS's convective cloud under
-# their anvils), from 4 km at its south-eastern edge, looking NNW and 3° up.
-shot cumulonimbus --camera 48.5,-23.0,4000 --heading 340 --pitch 3
+# their anvils), from 1 km in the clear air at its south-western edge, looking NE and 12° up.
+shot cumulonimbus --camera 49.4,-25.5,1000 --heading 40 --pitch 12
 # 5: cirrus, 44N 3.5W (high 0.29, 10.1-12.9 km, nothing below), from 300 m (the ground there
 # stands at 254 m since issue 14) looking N 30° up.
 shot cirrus --camera 44.0,-3.5,300 --heading 0 --pitch 30

@@ -52,6 +52,13 @@ const CELL_MIN_M: f32 = 1000.0;
 // The anvil's shield (GFS's high cover over deep convection) fills the column from this height
 // fraction up: a flat sheet under the top that the towers rise into.
 const ANVIL_FROM: f32 = 0.72;
+// How far downwind an anvil's far edge leans from its trunk at the column's top, in tower
+// spacings (0.35: 14 km, a 10-30 m/s upper wind over the cell's half-hour of growth).
+const ANVIL_SHEAR: f32 = 0.35;
+// A tower's trunk keeps the cloud's own density (as a cumulus cell), not one normalised to its
+// column: a cumulonimbus holds several times a stratus deck's water (1-3 against 0.1-0.5 g/m3)
+// and seen from the side it is a solid wall; its top-down opacity is its anvil's anyway.
+const TRUNK_DENSITY: f32 = 1.5;
 
 // Work counters: indices into `counters`, the fields of render::march::Counters in order.
 const C_RAYS: u32 = 0u;
@@ -234,7 +241,11 @@ fn tower_cover(uv: vec2<f32>, ph: f32, body_cm: f32) -> f32 {
     // maps of different regions put a place's towers in the same spots.
     let lat = f.region_north - uv.y * (f.region_north - f.region_south);
     let lon = f.region_west + uv.x * f.region_lon_span;
-    let g = vec2<f32>(lon * cos(radians(lat)), lat) * (111.2 / TOWER_SPACING_KM);
+    // The tower leans downwind over its upper part and its anvil is carried off with the wind at
+    // the top (f.streak_dir.xy, the high layer's one direction): a mushroom only where the upper
+    // air is calm. (Begun at the anvil's own height, the trunk rose straight through it.)
+    let g = vec2<f32>(lon * cos(radians(lat)), lat) * (111.2 / TOWER_SPACING_KM)
+        - f.streak_dir.xy * (ANVIL_SHEAR * smoothstep(0.6, 1.0, ph));
     // The trunk widens a little with height, then the anvil spreads over the top fifth.
     let widen = (0.8 + 0.2 * ph) * (1.0 + 2.0 * smoothstep(0.78, 0.95, ph));
     let r_base = TOWER_RADIUS_KM / TOWER_SPACING_KM * sqrt(body_cm);
@@ -358,12 +369,17 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     var top = 0.0;
     var cm = 0.0;
     var code = 0.0;
+    // How much of the sample is a tower's trunk rather than its anvil's shield (0 elsewhere).
+    var trunk = 0.0;
     if (anvil_cm > 0.0 && h >= b.a && h <= t.a) {
         base = b.a;
         top = t.a;
         // The towers, and under the column's top the anvil's shield: the high layer's coverage.
         let ph_t = (h - base) / max(top - base, 1.0);
-        cm = max(tower_cover(uv, ph_t, body_cm), anvil_cm * smoothstep(ANVIL_FROM, 0.9, ph_t));
+        let tc = tower_cover(uv, ph_t, body_cm);
+        let sc = anvil_cm * smoothstep(ANVIL_FROM, 0.9, ph_t);
+        cm = max(tc, sc);
+        trunk = sat(2.0 * (tc - sc));
         code = T_CUMULONIMBUS;
     } else if (k >= 0) {
         base = b[k];
@@ -377,7 +393,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let thick = max(top - base, 1.0);
     let ph = (h - base) / thick;
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
-    let scale = clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0) * f.density_mul;
+    let scale = mix(clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0), TRUNK_DENSITY, trunk) * f.density_mul;
     let nq = drifted(np, max(k, 0));
     if (code < 0.5) {
         return layer_density(nq, cm, ph, detail) * scale;

@@ -291,8 +291,12 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
         if st.cells && u.layer_scale.iter().any(|&v| v > 0.0) {
             u.flags |= flags::CELLS;
         }
-        if st.streaks && (s.layers_on[1] || s.layers_on[2]) {
-            u.flags |= flags::STREAKS;
+        // The high layer's wind streaks cirrus and carries the anvils of cumulonimbus downwind.
+        let towers = u.flags & flags::TOWERS != 0;
+        if (st.streaks || towers) && (s.layers_on[1] || s.layers_on[2]) {
+            if st.streaks {
+                u.flags |= flags::STREAKS;
+            }
             let wind = s.streak_wind.unwrap_or(st.mean_wind);
             let unit = |w: [f64; 2]| {
                 let n = w[0].hypot(w[1]);
