@@ -52,8 +52,8 @@ const CELL_MIN_M: f32 = 1000.0;
 // The anvil's shield (GFS's high cover over deep convection) fills the column from this height
 // fraction up: a flat sheet under the top that the towers rise into.
 const ANVIL_FROM: f32 = 0.72;
-// How far downwind an anvil's far edge leans from its trunk at the column's top, in tower
-// spacings (0.35: 14 km, a 10-30 m/s upper wind over the cell's half-hour of growth).
+// How far downwind a tower's top (and its anvil's centre) is carried from its trunk's foot, in
+// tower spacings (0.35: 14 km, a 10-30 m/s upper wind over the cell's half-hour of growth).
 const ANVIL_SHEAR: f32 = 0.35;
 // A tower's trunk keeps the cloud's own density (as a cumulus cell), not one normalised to its
 // column: a cumulonimbus holds several times a stratus deck's water (1-3 against 0.1-0.5 g/m3)
