@@ -71,7 +71,7 @@ struct Frame {
     subset_offset: vec2<f32>,   // the pixel of each subset cell marched this frame (render::reproject)
     subset_n: f32,              // subset cell side (px): 1 marches every pixel
     _pad1: f32,
-    streak_dir: vec4<f32>,      // cirrus streak direction (east, north): high in xy, middle in zw
+    streak_dir: vec4<f32>,      // mean wind direction (east, north): high in xy, middle in zw (streaks, anvils)
     region_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks and cumulus cells measured from it
     _pad2: f32,
     cell_drift: vec4<f32>,      // per layer, the drift (east, north m) mod the cells' tile: low xy, middle zw

@@ -113,8 +113,9 @@ crate::gpu_struct! {
         /// Side of the subset cell (px): 1 marches every pixel.
         pub subset_n: f32,
         pub _pad1: f32,
-        /// The unit direction cirrus is streaked along (east, north): the high layer's in
-        /// x, y, the middle's in z, w; zero in calm air (< 1 m/s).
+        /// The layers' region-mean wind direction (east, north): the high layer's in x, y, the
+        /// middle's in z, w; zero in calm air (< 1 m/s). Cirrus is streaked along it and a
+        /// cumulonimbus leans downwind along the high layer's.
         pub streak_dir: [f32; 4],
         /// The region's centre on the sea-level sphere (ECEF m): where the streaked noise and
         /// the cumulus cells are measured from (a frame constant, not worked out per sample).
