@@ -79,11 +79,20 @@ var<private> local_count: array<u32, N_COUNTERS>;
 // Set by the shadow stage's pipeline: the density is the noise's expectation, not one sample of
 // it, so the full-column light is smooth by construction (carve below).
 override MEAN_DENSITY: bool = false;
-// Off in the march's pipeline for maps without cumulonimbus (render::march::MarchPass): the
-// towers' code is compiled out, since a CPU driver pays for a branch no lane takes.
-override TOWERS: bool = true;
-// Off likewise for maps without cumulus: the cells' lookup is compiled out.
-override CELLS: bool = true;
+// Set by the march's pipeline (render::march::Variant): the frame's features (FEATURE_BITS of
+// its flags) as constants, so the code of a feature the frame does not use is compiled out: a
+// CPU driver runs both sides of every branch, and pays for a branch no lane takes (the
+// two-step blend's nine look-ups and the bands' carve cost more than half of a structured map's
+// march on lavapipe). The stages that leave FIXED_FEATURES off read the flags at run time.
+override FIXED_FEATURES: bool = false;
+override FEATURES: u32 = 0u;
+
+fn feature(bit: u32) -> bool {
+    if (FIXED_FEATURES) {
+        return (FEATURES & bit) != 0u;
+    }
+    return has_flag(f, bit);
+}
 
 struct Sample {
     cm: vec3<f32>,   // coverage per layer
@@ -123,7 +132,7 @@ fn weather_at(uv: vec2<f32>) -> Sample {
     s.cm = vec3<f32>(0.0);
     if (s.inside) {
         var c: vec3<f32>;
-        if (has_flag(f, FLAG_BLEND)) {
+        if (feature(FLAG_BLEND)) {
             c = blended_cover(uv);
         } else {
             c = textureSampleLevel(weather, clamp_lin, uv, 0.0).rgb;
@@ -191,29 +200,42 @@ fn mean_carve(s: f32, lo: f32) -> f32 {
     return ((m - lo) * (m - lo) - (a - lo) * (a - lo)) / (2.0 * span * s);
 }
 
-// DESIGN §2, eqs 5–18, for one layer band: coverage cm, height fraction ph, noise position np.
-fn layer_density(np: vec3<f32>, cm: f32, ph: f32, detail: bool) -> f32 {
+// How a column is carved (carve's arguments besides the point): the noise's scale, the
+// threshold, the density profile gd (0: nothing there, carve skipped) and the shape noise's
+// frequency. Each shape below gives one, and the caller carves once: on a CPU driver, which
+// runs every call site for every lane, a carve per shape would be a noise look-up per shape on
+// every sample.
+struct Carving {
+    ns_scale: f32,
+    lo: f32,
+    gd: f32,
+    freq: f32,
+};
+
+// DESIGN §2, eqs 5–18, for one layer band: coverage cm, height fraction ph.
+fn layer_carving(cm: f32, ph: f32) -> Carving {
     let gs = sat(remap(ph, 0.0, 0.07, 0.0, 1.0)) * sat(remap(ph, 0.2 * cm, cm, 1.0, 0.0));
     let gd = ph * sat(remap(ph, 0.0, 0.15, 0.0, 1.0)) * sat(remap(ph, 0.9, 1.0, 1.0, 0.0)) * cm * 2.0;
-    if (gs <= 0.0 || gd <= 0.0) {
-        return 0.0;
-    }
-    return carve(np, gs, 1.0 - cm, gd, cm, ph, detail, 1.0);
+    return Carving(gs, 1.0 - cm, select(gd, 0.0, gs <= 0.0), 1.0);
 }
 
 // DESIGN §7, one column of a genus: the threshold 1 − cm·P(h) from the genus' profile row, so
 // the base is solid and flat and only the noise's peaks reach the top.
-fn genus_density(np: vec3<f32>, cm: f32, ph: f32, code: f32, detail: bool) -> f32 {
+fn genus_carving(cm: f32, ph: f32, code: f32) -> Carving {
     let x = (ph * (PROFILE_WIDTH - 1.0) + 0.5) / PROFILE_WIDTH;
     let pd = textureSampleLevel(profiles, clamp_lin, vec2<f32>(x, (code + 0.5) / PROFILE_ROWS), 0.0);
     let gd = pd.g * cm * 2.0;
-    if (pd.r <= 0.0 || gd <= 0.0) {
-        return 0.0;
-    }
     // The threshold sees coverage^γ (render::profile::Shape::gamma): opacity follows coverage.
     // A is the genus' cell frequency: an integer, so the camera-relative noise position still
     // wraps by whole periods.
-    return carve(np, 1.0, 1.0 - pow(cm, pd.b) * pd.r, gd, cm, ph, detail, pd.a);
+    return Carving(1.0, 1.0 - pow(cm, pd.b) * pd.r, select(gd, 0.0, pd.r <= 0.0), pd.a);
+}
+
+fn carve_with(np: vec3<f32>, c: Carving, cm: f32, ph: f32, detail: bool) -> f32 {
+    if (c.gd <= 0.0) {
+        return 0.0;
+    }
+    return carve(np, c.ns_scale, c.lo, c.gd, cm, ph, detail, c.freq);
 }
 
 // A hash of a 2D cell, three values in 0..1.
@@ -309,7 +331,7 @@ fn ground_xy(uv: vec2<f32>) -> vec2<f32> {
 // out (billows, lumpy outlines), and only that: where the cells stand is the field's, the same
 // at every height.
 // k: the layer, whose drift (f.cell_drift, east/north modulo the tile) moves the cells.
-fn cumulus_density(uv: vec2<f32>, np: vec3<f32>, k: i32, cm: f32, ph: f32, thick: f32, detail: bool) -> f32 {
+fn cumulus_carving(uv: vec2<f32>, k: i32, cm: f32, ph: f32, thick: f32) -> Carving {
     let drift = select(select(f.cell_drift_high.xy, f.cell_drift.zw, k == 1), f.cell_drift.xy, k == 0);
     let c = textureSampleLevel(cells, repeat_lin, (ground_xy(uv) - drift) / CELL_PERIOD_M, 0.0);
     // The field's rank is the area nearer the core, so 1 − (rank over the threshold, per
@@ -323,12 +345,10 @@ fn cumulus_density(uv: vec2<f32>, np: vec3<f32>, k: i32, cm: f32, ph: f32, thick
     let z = ph * thick / max(tall, 50.0);
     // Distance inside the dome's surface, in the dome's own units (0 on it, 1 at its core).
     let inside = 1.0 - sqrt(max(rho2, 0.0) + z * z * z);
-    if (inside * CELL_EDGE < CELL_MID - 1.0) {
-        return 0.0;
-    }
     // Solid from the base (60 % at once), the billows' relief on the surface.
     let gd = CELL_DENSITY * (0.6 + 0.4 * sat(2.0 * ph));
-    return carve(np, 1.0, CELL_MID - inside * CELL_EDGE, gd, cm, ph, detail, CELL_FREQ);
+    let outside = inside * CELL_EDGE < CELL_MID - 1.0;
+    return Carving(1.0, CELL_MID - inside * CELL_EDGE, select(gd, 0.0, outside), CELL_FREQ);
 }
 
 // Density at altitude h in the column at map uv, from the column's own base, top and genus
@@ -344,7 +364,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let dims = vec2<i32>(textureDimensions(st_kind));
     let kc = clamp(vec2<i32>(floor(su * vec2<f32>(dims) + (cell_hash(np) - 0.5))), vec2<i32>(0), dims - 1);
     let kind = textureLoad(st_kind, kc, 0);
-    let towers = TOWERS && has_flag(f, FLAG_TOWERS);
+    let towers = feature(FLAG_TOWERS);
     var k = -1;
     var best = 0.0;
     // The tower's body takes the coverage of the low and middle layers it spans; its anvil,
@@ -393,28 +413,31 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let thick = max(top - base, 1.0);
     let ph = (h - base) / thick;
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
-    let scale = mix(clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0), TRUNK_DENSITY, trunk) * f.density_mul;
+    var scale = mix(clamp(REFERENCE_THICKNESS_M / thick, 0.25, 4.0), TRUNK_DENSITY, trunk) * f.density_mul;
     let nq = drifted(np, max(k, 0));
+    var p = nq;
+    var c: Carving;
     if (code < 0.5) {
-        return layer_density(nq, cm, ph, detail) * scale;
-    }
-    if (CELLS && has_flag(f, FLAG_CELLS) && code == T_CUMULUS) {
+        c = layer_carving(cm, ph);
+    } else if (feature(FLAG_CELLS) && code == T_CUMULUS) {
+        c = cumulus_carving(uv, max(k, 0), cm, ph, thick);
         // A cell's density is the cloud's own, not normalised to the column: its coverage is
         // its area.
-        return cumulus_density(uv, nq, max(k, 0), cm, ph, thick, detail) * f.density_mul;
-    }
-    var p = nq;
-    if (has_flag(f, FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
-        // Streaks where the column's own wind blows (calm air, < 1 m/s, has none), along the
-        // layer's one direction.
-        let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
-        let wl = select(w.zw, w.xy, k == 2);
-        let dir = select(f.streak_dir.zw, f.streak_dir.xy, k == 2);
-        if (dot(wl, wl) >= 1.0 && dot(dir, dir) > 0.5) {
-            p = streaked(uv, h, ph, dir) + (nq - np);
+        scale = f.density_mul;
+    } else {
+        c = genus_carving(cm, ph, code);
+        if (feature(FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
+            // Streaks where the column's own wind blows (calm air, < 1 m/s, has none), along
+            // the layer's one direction.
+            let w = textureSampleLevel(st_wind, clamp_lin, su, 0.0);
+            let wl = select(w.zw, w.xy, k == 2);
+            let dir = select(f.streak_dir.zw, f.streak_dir.xy, k == 2);
+            if (dot(wl, wl) >= 1.0 && dot(dir, dir) > 0.5) {
+                p = streaked(uv, h, ph, dir) + (nq - np);
+            }
         }
     }
-    return genus_density(p, cm, ph, code, detail) * scale;
+    return carve_with(p, c, cm, ph, detail) * scale;
 }
 
 // Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.
@@ -444,7 +467,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         }
         local_count[C_OUTSIDE] += 1u;
     }
-    if (has_flag(f, FLAG_STRUCTURE)) {
+    if (feature(FLAG_STRUCTURE)) {
         // Outside every layer's envelope and the towers' there is nothing to look up.
         let in_tower = h >= f.tower_base_m && h <= f.tower_top_m;
         var in_layer = false;
@@ -458,7 +481,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     }
     // The drawn bands are disjoint (frame.rs makes them so): one layer at most holds h, and only
     // its density is evaluated. A SIMD CPU driver (lavapipe) executes both sides of every branch,
-    // so a loop calling layer_density per layer would cost three evaluations on every sample.
+    // so a loop carving each layer would cost three evaluations on every sample.
     var k = -1;
     for (var j = 0; j < 3; j++) {
         if (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j]) {
@@ -471,5 +494,6 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     local_count[C_DENSITY] += 1u;
     let base = f.layer_base[k];
     let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
-    return layer_density(drifted(np, k), s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
+    let c = layer_carving(s.cm[k], ph);
+    return carve_with(drifted(np, k), c, s.cm[k], ph, detail) * f.layer_scale[k] * f.density_mul;
 }

@@ -25,7 +25,7 @@ struct Ray {
 fn make_ray(px: vec2<f32>) -> Ray {
     var r: Ray;
     let size = f.out_size;
-    if (has_flag(f, FLAG_NO_SKY)) {
+    if (feature(FLAG_NO_SKY)) {
         // Top-down: one nadir ray per map pixel centre (DESIGN §1.2 pixel convention).
         let lat = radians(f.region_north - px.y / size.y * (f.region_north - f.region_south));
         let lon = radians(f.region_west + px.x / size.x * f.region_lon_span);
@@ -96,7 +96,7 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         end_all = min(end_all, max(ground.x, 0.0));
     }
     // The terrain hides what lies behind it (the score's nadir rays see the cloud above it).
-    if (!has_flag(f, FLAG_NO_SKY)) {
+    if (!feature(FLAG_NO_SKY)) {
         let hit = terrain_hit(r.up * (EARTH_R + r.h), r.h, mu, r.d, end_all);
         if (hit >= 0.0) {
             end_all = hit;
@@ -111,14 +111,14 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
         seg2 = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
     }
 
-    let no_sky = has_flag(f, FLAG_NO_SKY);
+    let no_sky = feature(FLAG_NO_SKY);
     let skip = has_flag(f, FLAG_SKIP);
     let lod = has_flag(f, FLAG_LIGHT_LOD);
     let may_stride = has_flag(f, FLAG_STRIDE);
     // The score's top-down columns stride at most 2×: there a wisp jumped over is a mask pixel
     // lost (at 4× the top-down RGB error against reference rose from 0.006 to 0.023).
     let max_mult = select(4.0, 2.0, no_sky);
-    let detail = has_flag(f, FLAG_DETAIL);
+    let detail = feature(FLAG_DETAIL);
     let sun_key = f.sun_is_key != 0u;
     let cos_t = dot(r.d, select(f.moon_dir, f.sun_dir, sun_key));
     let g = f.hg_g;
@@ -360,7 +360,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         let c = march(r, jitter);
         textureStore(out_cloud, vec2<i32>(id.xy), c);
         var scene = vec4<f32>(0.0);
-        if (!has_flag(f, FLAG_NO_SKY)) {
+        if (!feature(FLAG_NO_SKY)) {
             let bg = background_at(r.d);
             scene = vec4<f32>(bg.rgb, select(bg.a, cloud_dist, c.a >= 0.5) * 1e-3);
         }

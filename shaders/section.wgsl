@@ -24,6 +24,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let pos = up * (EARTH_R + h);
     // The noise at this point as the march sees it from any camera: ECEF modulo the period.
     let np = pos - f.shape_period_m * floor(pos / f.shape_period_m);
-    let sigma = density(pos, h, np, has_flag(f, FLAG_DETAIL)) * f.extinction;
+    let sigma = density(pos, h, np, feature(FLAG_DETAIL)) * f.extinction;
     sigma_out[id.y * sp.width + id.x] = sigma;
 }

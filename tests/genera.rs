@@ -94,29 +94,32 @@ fn each_map_compiles_only_the_march_its_genera_need() {
     let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
         .unwrap()
         .with_timezone(&Utc);
-    let v = |towers, cells| Variant { towers, cells };
     let stratus = uniform(CloudType::Stratus, 0.6, t);
     let mut r = Renderer::new(Gpu::new(None).unwrap(), &stratus);
     let s = Settings::new(Preset::Fast, t);
-    let frame = |r: &mut Renderer, map: &CloudMap| {
+    // The genera's code in the variants compiled after a frame of each map, in order.
+    let seen = |r: &mut Renderer, map: &CloudMap| {
         r.set_map(map);
         r.render(&View::TopDown, 32, 32, &s).unwrap();
+        let v = r.march_variants_compiled();
+        let any = |pick: fn(Variant) -> bool| v.iter().any(|&x| pick(x));
+        (v.len(), any(Variant::towers), any(Variant::cells))
     };
-    frame(&mut r, &stratus);
-    assert!(r.march_variant_compiled(v(false, false)));
-    assert!(!r.march_variant_compiled(v(false, true)) && !r.march_variant_compiled(v(true, false)));
-    frame(&mut r, &uniform(CloudType::Cumulus, 0.6, t));
-    assert!(
-        r.march_variant_compiled(v(false, true)),
-        "cumulus without the cells"
+    assert_eq!(seen(&mut r, &stratus), (1, false, false));
+    // Cumulus compiles the cells' variant, not the towers'.
+    assert_eq!(
+        seen(&mut r, &uniform(CloudType::Cumulus, 0.6, t)),
+        (2, false, true)
     );
-    assert!(!r.march_variant_compiled(v(true, false)));
-    frame(&mut r, &uniform(CloudType::Cumulonimbus, 0.6, t));
-    assert!(
-        r.march_variant_compiled(v(true, false)),
-        "cumulonimbus without the towers"
-    );
-    assert!(!r.march_variant_compiled(v(true, true)));
+    // Cumulonimbus the towers', alone (not with the cells).
+    let cb = seen(&mut r, &uniform(CloudType::Cumulonimbus, 0.6, t));
+    assert_eq!(cb, (3, true, true));
+    assert!(r
+        .march_variants_compiled()
+        .iter()
+        .all(|v| !(v.towers() && v.cells())));
+    // A second frame of a map compiles nothing more.
+    assert_eq!(seen(&mut r, &stratus).0, 3);
 }
 
 /// Cloud brightness along one row of a `stratus section` image (0 clear, up to 1).
@@ -181,4 +184,58 @@ fn a_cumulonimbus_leans_downwind_into_its_anvil() {
     assert!((5..=14).contains(&windy), "leans {windy} px in a westerly");
     let calm = lean(0.0);
     assert!(calm.abs() <= 2, "leans {calm} px in calm air");
+}
+
+/// The median extinction (1/m) of the cloudy points of a map's section along 25°N, 100.5–109.5°E
+/// (1 000 columns), in the rows between `lo` and `hi` m.
+fn cloudy_median(r: &mut Renderer, map: &CloudMap, s: &Settings, (lo, hi): (f64, f64)) -> f64 {
+    r.set_map(map);
+    let lat = 25f64.to_radians();
+    let columns: Vec<glam::DVec3> = (0..1000)
+        .map(|i| {
+            let lon = (100.5 + 9.0 * (i as f64 + 0.5) / 1000.0).to_radians();
+            glam::DVec3::new(lat.cos() * lon.cos(), lat.cos() * lon.sin(), lat.sin())
+        })
+        .collect();
+    let (height, top) = (200u32, 10_000.0);
+    let sigma = r.section(&columns, height, top as f32, s).unwrap();
+    let mut cloudy: Vec<f64> = (0..height)
+        .filter(|&y| {
+            let h = top * (1.0 - (y as f64 + 0.5) / height as f64);
+            (lo..=hi).contains(&h)
+        })
+        .flat_map(|y| sigma[(y * 1000) as usize..((y + 1) * 1000) as usize].to_vec())
+        .filter(|&v| v > 0.0)
+        .map(f64::from)
+        .collect();
+    assert!(cloudy.len() > 1000, "{} cloudy points", cloudy.len());
+    cloudy.sort_by(f64::total_cmp);
+    cloudy[cloudy.len() / 2]
+}
+
+#[test]
+fn a_cumulonimbus_trunk_is_denser_than_a_cumulus_not_a_veil() {
+    let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
+    let cu = uniform(CloudType::Cumulus, 0.7, t);
+    let mut r = Renderer::new(Gpu::new(None).unwrap(), &cu);
+    let s = Settings::new(Preset::Fast, t);
+    // Inside a cumulus cell, and inside the trunks of an 8 km deep convective column under
+    // where the trunks lean and the anvils spread. A cumulonimbus holds more water than a
+    // cumulus (1-3 against 0.3-1 g/m3); normalised to its column as a deck is (2 km / 8 km), a
+    // trunk would be a sixth as dense as it is: a translucent veil seen from the side.
+    let cell = cloudy_median(&mut r, &cu, &s, (900.0, 1900.0));
+    let cb = column(CloudType::Cumulonimbus, 0.9, t, (1000.0, 9000.0), 0.0);
+    let trunk = cloudy_median(&mut r, &cb, &s, (2000.0, 5000.0));
+    let deck = column(CloudType::Stratus, 0.9, t, (1000.0, 9000.0), 0.0);
+    let stratus = cloudy_median(&mut r, &deck, &s, (2000.0, 5000.0));
+    println!(
+        "median extinction: cumulus cell {cell:.4}, trunk {trunk:.4}, 8 km stratus {stratus:.4} /m"
+    );
+    assert!(
+        trunk > cell && trunk < 4.0 * cell,
+        "trunk {trunk} against a cumulus cell's {cell}"
+    );
+    assert!(trunk > 3.0 * stratus, "trunk {trunk}, deck {stratus}");
 }

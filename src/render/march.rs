@@ -7,6 +7,9 @@
 //! counters), the map's (weather and coarse textures) and the output size's (cloud texture,
 //! cut-ray mask), so a new map or size rebinds only its own group.
 
+use std::collections::HashMap;
+use std::sync::Mutex;
+
 use super::contract::{self, Binding, Resource};
 use super::frame::FrameUniforms;
 use super::gpu::Gpu;
@@ -96,36 +99,43 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     })
 }
 
-/// Which of the genera's optional code the march compiles in (the WGSL constants `TOWERS` and
-/// `CELLS`): the frame's map has cumulonimbus towers, cumulus cells.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Variant {
-    pub towers: bool,
-    pub cells: bool,
-}
+/// Which of the march's optional code a frame compiles in: its flags ([`FEATURE_BITS`] of them)
+/// as the WGSL constant `FEATURES`. A CPU driver runs both sides of every branch, so a frame
+/// would otherwise pay for every feature it does not use (the two-step blend, the bands' carve,
+/// the towers, the cells, the streaks, the detail noise, the top-down view's lighting).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant(u32);
+
+/// The flags that select a variant: those that add or remove code on the per-sample path.
+pub const FEATURE_BITS: u32 = {
+    use super::frame::flags as fl;
+    fl::STRUCTURE | fl::TOWERS | fl::STREAKS | fl::CELLS | fl::BLEND | fl::DETAIL | fl::NO_SKY
+};
 
 impl Variant {
     /// The variant a frame's flags (`frame::flags`) need.
     pub fn of(flags: u32) -> Variant {
-        use super::frame::flags as fl;
-        Variant {
-            towers: flags & fl::TOWERS != 0,
-            cells: flags & fl::CELLS != 0,
-        }
+        Variant(flags & FEATURE_BITS)
     }
 
-    fn index(self) -> usize {
-        self.towers as usize | (self.cells as usize) << 1
+    /// The same without the features in `bits` (a stage whose code does not read them).
+    pub fn without(self, bits: u32) -> Variant {
+        Variant(self.0 & !bits)
+    }
+
+    /// Whether it compiles in the cumulonimbus towers.
+    pub fn towers(self) -> bool {
+        self.0 & super::frame::flags::TOWERS != 0
+    }
+
+    /// Whether it compiles in the cumulus cells.
+    pub fn cells(self) -> bool {
+        self.0 & super::frame::flags::CELLS != 0
     }
 }
 
 pub struct MarchPass {
-    /// One per [`Variant`]: a CPU driver runs both sides of every branch, so a map without
-    /// towers or cumulus would still pay for their code. A variant is compiled the first time a
-    /// map needs it.
-    pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; 4],
-    pipeline_layout: wgpu::PipelineLayout,
-    module: wgpu::ShaderModule,
+    pipelines: StagePipelines,
     layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
@@ -207,33 +217,18 @@ impl MarchPass {
                 R::TextureView(&cells),
             ],
         );
-        let pass = MarchPass {
-            pipelines: Default::default(),
-            pipeline_layout: layout,
-            module,
+        MarchPass {
+            pipelines: StagePipelines::new("march", layout, module, &[]),
             layouts,
             uniforms,
             counters,
             device_bind,
-        };
-        // The common variant now, so the first frame pays no compile.
-        pass.pipeline(gpu, Variant::of(0));
-        pass
+        }
     }
 
-    /// The march's pipeline of a variant (compiled once, on first use).
-    fn pipeline(&self, gpu: &Gpu, v: Variant) -> &wgpu::ComputePipeline {
-        self.pipelines[v.index()].get_or_init(|| {
-            let label = format!("march (towers {}, cells {})", v.towers, v.cells);
-            let on = |b: bool| if b { 1.0 } else { 0.0 };
-            let constants = [("TOWERS", on(v.towers)), ("CELLS", on(v.cells))];
-            compute_pipeline(gpu, &label, &self.pipeline_layout, &self.module, &constants)
-        })
-    }
-
-    /// Whether a variant's pipeline has been compiled (tests: a map selects its variant).
-    pub fn compiled(&self, v: Variant) -> bool {
-        self.pipelines[v.index()].get().is_some()
+    /// The variants compiled so far (tests: a map selects its variant).
+    pub fn compiled(&self) -> Vec<Variant> {
+        self.pipelines.compiled()
     }
 
     /// The layouts of the device's and the map's groups, which the section stage shares.
@@ -243,14 +238,15 @@ impl MarchPass {
 
     /// A compute stage that evaluates the cloud as the march does: the march's device and map
     /// groups, then its own bindings as group `GROUP_TARGET`; entry point `main`, with these
-    /// pipeline-overridable constants. Returns the pipeline and its own group's layout.
+    /// pipeline-overridable constants besides the variant's. Returns its pipelines and its own
+    /// group's layout.
     pub fn cloud_stage(
         &self,
         gpu: &Gpu,
         label: &str,
         (own, source): (&[Binding], &str),
-        constants: &[(&str, f64)],
-    ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+        constants: &[(&'static str, f64)],
+    ) -> (StagePipelines, wgpu::BindGroupLayout) {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::COMPUTE;
         let own_layout = contract::layout(dev, label, own, GROUP_TARGET, stage);
@@ -261,8 +257,8 @@ impl MarchPass {
             immediate_size: 0,
         });
         let module = shader::module(dev, label, source);
-        let pipeline = compute_pipeline(gpu, label, &pipeline_layout, &module, constants);
-        (pipeline, own_layout)
+        let pipelines = StagePipelines::new(label, pipeline_layout, module, constants);
+        (pipelines, own_layout)
     }
 
     pub fn device_bind(&self) -> &wgpu::BindGroup {
@@ -331,12 +327,63 @@ impl MarchPass {
             label: Some("march"),
             timestamp_writes: timestamps,
         });
-        pass.set_pipeline(self.pipeline(gpu, variant));
+        pass.set_pipeline(&self.pipelines.get(gpu, variant));
         pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
         pass.set_bind_group(GROUP_MAP, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, target_bind, &[]);
         pass.set_bind_group(super::shadow::SCENE_GROUP, scene_bind, &[]);
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+    }
+}
+
+/// One cloud-evaluating stage's pipelines (march, shadow, section), one per [`Variant`], each
+/// compiled the first time a frame needs it.
+pub struct StagePipelines {
+    label: String,
+    layout: wgpu::PipelineLayout,
+    module: wgpu::ShaderModule,
+    /// The stage's own constants, besides the variant's.
+    constants: Vec<(&'static str, f64)>,
+    compiled: Mutex<HashMap<Variant, wgpu::ComputePipeline>>,
+}
+
+impl StagePipelines {
+    fn new(
+        label: &str,
+        layout: wgpu::PipelineLayout,
+        module: wgpu::ShaderModule,
+        constants: &[(&'static str, f64)],
+    ) -> StagePipelines {
+        StagePipelines {
+            label: label.to_string(),
+            layout,
+            module,
+            constants: constants.to_vec(),
+            compiled: Mutex::default(),
+        }
+    }
+
+    /// The pipeline of a variant (compiled on first use).
+    pub fn get(&self, gpu: &Gpu, v: Variant) -> wgpu::ComputePipeline {
+        self.lock()
+            .entry(v)
+            .or_insert_with(|| {
+                let label = format!("{} (features {:#x})", self.label, v.0);
+                let mut constants = self.constants.clone();
+                constants.extend([("FIXED_FEATURES", 1.0), ("FEATURES", f64::from(v.0))]);
+                compute_pipeline(gpu, &label, &self.layout, &self.module, &constants)
+            })
+            .clone()
+    }
+
+    /// The variants compiled so far.
+    pub fn compiled(&self) -> Vec<Variant> {
+        self.lock().keys().copied().collect()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Variant, wgpu::ComputePipeline>> {
+        // A poisoned lock only means a thread panicked while compiling: the map is intact.
+        self.compiled.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 

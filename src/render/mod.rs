@@ -543,14 +543,14 @@ impl Renderer {
         }
     }
 
-    /// Swap in another CloudMap. One of the same size goes into the textures already there
-    /// (every rh_cr slider move); the render targets stay whatever the map.
-    /// Whether the march's pipeline of a variant has been compiled: a map needing it
-    /// compiles it on its first frame (tests check the map's genera pick the right one).
-    pub fn march_variant_compiled(&self, v: march::Variant) -> bool {
-        self.march.compiled(v)
+    /// The march's variants compiled so far: a frame needing one compiles it (tests check that
+    /// a map's genera pick the right one).
+    pub fn march_variants_compiled(&self) -> Vec<march::Variant> {
+        self.march.compiled()
     }
 
+    /// Swap in another CloudMap. One of the same size goes into the textures already there
+    /// (every rh_cr slider move); the render targets stay whatever the map.
     pub fn set_map(&mut self, map: &CloudMap) {
         if !self.weather.replace(&self.gpu, map) {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);
@@ -884,6 +884,7 @@ impl Renderer {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let out = pass.encode(
             &self.gpu,
+            march::Variant::of(uniforms.flags).without(frame::flags::NO_SKY),
             &mut enc,
             (self.march.device_bind(), &self.map_bind),
             columns,

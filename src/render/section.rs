@@ -6,7 +6,7 @@ use glam::DVec3;
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::{bind, MarchPass, GROUP_TARGET};
+use super::march::{bind, MarchPass, StagePipelines, Variant, GROUP_TARGET};
 use super::shader;
 
 crate::gpu_struct! {
@@ -46,22 +46,25 @@ pub fn bindings() -> Vec<Binding> {
 }
 
 pub struct SectionPass {
-    pipeline: wgpu::ComputePipeline,
+    pipelines: StagePipelines,
     layout: wgpu::BindGroupLayout,
 }
 
 impl SectionPass {
     pub fn new(gpu: &Gpu, march: &MarchPass) -> SectionPass {
-        let (pipeline, layout) =
+        let (pipelines, layout) =
             march.cloud_stage(gpu, "section", (OWN_BINDINGS, shader::SECTION), &[]);
-        SectionPass { pipeline, layout }
+        SectionPass { pipelines, layout }
     }
 
     /// Encode the section over `columns` (unit ECEF ground directions, one per image column)
-    /// into a new buffer of `columns.len() × height` extinctions (1/m), row 0 at `top_m`.
+    /// into a new buffer of `columns.len() × height` extinctions (1/m), row 0 at `top_m`, with
+    /// the cloud's code the frame's map needs (`variant`).
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         gpu: &Gpu,
+        variant: Variant,
         enc: &mut wgpu::CommandEncoder,
         (device_bind, map_bind): (&wgpu::BindGroup, &wgpu::BindGroup),
         columns: &[DVec3],
@@ -111,7 +114,7 @@ impl SectionPass {
             label: Some("section"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.pipelines.get(gpu, variant));
         pass.set_bind_group(0, device_bind, &[]);
         pass.set_bind_group(1, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, &own, &[]);

@@ -11,9 +11,9 @@
 //! (shaders/scene.wgsl).
 
 use super::contract::{self, Binding, Resource};
-use super::frame::FrameUniforms;
+use super::frame::{flags, FrameUniforms};
 use super::gpu::Gpu;
-use super::march::{bind, MarchPass, GROUP_TARGET};
+use super::march::{bind, MarchPass, StagePipelines, Variant, GROUP_TARGET};
 use super::shader;
 use stratus_ingest::region::Region;
 
@@ -188,7 +188,6 @@ impl Inputs {
             *l = v;
         }
         // Only the flags that change the cloud itself.
-        use super::frame::flags;
         let shape = flags::STRUCTURE | flags::TOWERS | flags::STREAKS | flags::CELLS | flags::CULL;
         Inputs {
             key_dir,
@@ -230,7 +229,7 @@ struct Build {
 }
 
 pub struct ShadowPass {
-    pipeline: wgpu::ComputePipeline,
+    pipelines: StagePipelines,
     own_layout: wgpu::BindGroupLayout,
     scene_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
@@ -262,7 +261,7 @@ impl ShadowPass {
         sky: SkyViews,
     ) -> ShadowPass {
         let dev = &gpu.device;
-        let (pipeline, own_layout) = march.cloud_stage(
+        let (pipelines, own_layout) = march.cloud_stage(
             gpu,
             "shadow",
             (OWN_BINDINGS, shader::SHADOW),
@@ -288,7 +287,7 @@ impl ShadowPass {
         let (ground_tex, _) = super::ground::upload(gpu, None);
         let ground = ground_tex.create_view(&Default::default());
         let mut pass = ShadowPass {
-            pipeline,
+            pipelines,
             own_layout,
             scene_layout,
             sampler,
@@ -481,7 +480,9 @@ impl ShadowPass {
                 label: Some("shadow"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            // The light volume takes no detail noise and draws no view.
+            let v = Variant::of(u.flags).without(flags::DETAIL | flags::NO_SKY);
+            pass.set_pipeline(&self.pipelines.get(gpu, v));
             pass.set_bind_group(0, march.device_bind(), &[]);
             pass.set_bind_group(1, map_bind, &[]);
             pass.set_bind_group(GROUP_TARGET, &self.volumes[target].own_bind, &[]);
