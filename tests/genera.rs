@@ -11,6 +11,13 @@ use stratus_ingest::region::Region;
 use stratus_ingest::structure::{altitude_to_sample, wind_to_sample, MapStructure};
 use stratus_ingest::weather::CloudType;
 
+/// The tests' time: 05 UTC at midsummer, the Sun well up over the maps' region (100–110°E).
+fn morning() -> DateTime<Utc> {
+    DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc)
+}
+
 /// A low layer of one genus at one coverage everywhere, its columns 800–2000 m.
 fn uniform(genus: CloudType, c: f64, t: DateTime<Utc>) -> CloudMap {
     column(genus, c, t, (800.0, 2000.0), 8.0)
@@ -66,9 +73,7 @@ fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> f64 {
 
 #[test]
 fn a_cumulus_coverage_is_the_area_under_its_cells() {
-    let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
+    let t = morning();
     let mut r = Renderer::new(
         Gpu::new(None).unwrap(),
         &uniform(CloudType::Cumulus, 0.5, t),
@@ -91,9 +96,7 @@ fn a_cumulus_coverage_is_the_area_under_its_cells() {
 
 #[test]
 fn each_map_compiles_only_the_march_its_genera_need() {
-    let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
+    let t = morning();
     let stratus = uniform(CloudType::Stratus, 0.6, t);
     let mut r = Renderer::new(Gpu::new(None).unwrap(), &stratus);
     let s = Settings::new(Preset::Fast, t);
@@ -144,9 +147,7 @@ fn best_shift(a: &[f64], b: &[f64], most: i64) -> i64 {
 
 #[test]
 fn a_cumulonimbus_leans_downwind_into_its_anvil() {
-    let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
+    let t = morning();
     let dir = tempfile::tempdir().unwrap();
     // A section along 25°N through the towers of a uniform convective column 1-9 km, 0.5 km a
     // pixel east-west, 50 m a pixel up: the row at 3.4 km (trunks only) against the row at
@@ -215,9 +216,7 @@ fn cloudy_median(r: &mut Renderer, map: &CloudMap, s: &Settings, (lo, hi): (f64,
 
 #[test]
 fn a_cumulonimbus_trunk_is_denser_than_a_cumulus_not_a_veil() {
-    let t = DateTime::parse_from_rfc3339("2024-06-21T05:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
+    let t = morning();
     let cu = uniform(CloudType::Cumulus, 0.7, t);
     let mut r = Renderer::new(Gpu::new(None).unwrap(), &cu);
     let s = Settings::new(Preset::Fast, t);
