@@ -99,8 +99,8 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     })
 }
 
-/// Which of the march's optional code a frame compiles in: its flags ([`FEATURE_BITS`] of them)
-/// as the WGSL constant `FEATURES`. A CPU driver runs both sides of every branch, so a frame
+/// Which of the cloud stages' optional code a frame compiles in: its flags ([`FEATURE_BITS`] of
+/// them) as the WGSL constant `FEATURES`. A CPU driver runs both sides of every branch, so a frame
 /// would otherwise pay for every feature it does not use (the two-step blend, the bands' carve,
 /// the towers, the cells, the streaks, the detail noise, the top-down view's lighting).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
