@@ -18,6 +18,12 @@ fn morning() -> DateTime<Utc> {
         .with_timezone(&Utc)
 }
 
+/// A renderer holding `map` and the fast preset's settings at the tests' time.
+fn fast(map: &CloudMap) -> (Renderer, Settings) {
+    let r = Renderer::new(Gpu::new(None).unwrap(), map);
+    (r, Settings::new(Preset::Fast, morning()))
+}
+
 /// A low layer of one genus at one coverage everywhere, its columns 800–2000 m.
 fn uniform(genus: CloudType, c: f64, t: DateTime<Utc>) -> CloudMap {
     column(genus, c, t, (800.0, 2000.0), 8.0)
@@ -74,11 +80,7 @@ fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> f64 {
 #[test]
 fn a_cumulus_coverage_is_the_area_under_its_cells() {
     let t = morning();
-    let mut r = Renderer::new(
-        Gpu::new(None).unwrap(),
-        &uniform(CloudType::Cumulus, 0.5, t),
-    );
-    let s = Settings::new(Preset::Fast, t);
+    let (mut r, s) = fast(&uniform(CloudType::Cumulus, 0.5, t));
     for c in [0.15, 0.4, 0.7] {
         let f = opaque_fraction(&mut r, &uniform(CloudType::Cumulus, c, t), &s);
         println!("cumulus at coverage {c}: {f:.3} of the rays opaque");
@@ -98,8 +100,7 @@ fn a_cumulus_coverage_is_the_area_under_its_cells() {
 fn each_map_compiles_only_the_march_its_genera_need() {
     let t = morning();
     let stratus = uniform(CloudType::Stratus, 0.6, t);
-    let mut r = Renderer::new(Gpu::new(None).unwrap(), &stratus);
-    let s = Settings::new(Preset::Fast, t);
+    let (mut r, s) = fast(&stratus);
     // The genera's code in the variants compiled after a frame of each map, in order.
     let seen = |r: &mut Renderer, map: &CloudMap| {
         r.set_map(map);
@@ -218,8 +219,7 @@ fn cloudy_median(r: &mut Renderer, map: &CloudMap, s: &Settings, (lo, hi): (f64,
 fn a_cumulonimbus_trunk_is_denser_than_a_cumulus_not_a_veil() {
     let t = morning();
     let cu = uniform(CloudType::Cumulus, 0.7, t);
-    let mut r = Renderer::new(Gpu::new(None).unwrap(), &cu);
-    let s = Settings::new(Preset::Fast, t);
+    let (mut r, s) = fast(&cu);
     // Inside a cumulus cell, and inside the trunks of an 8 km deep convective column under
     // where the trunks lean and the anvils spread. A cumulonimbus holds more water than a
     // cumulus (1-3 against 0.3-1 g/m3); normalised to its column as a deck is (2 km / 8 km), a

@@ -118,11 +118,6 @@ impl Variant {
         Variant(flags & FEATURE_BITS)
     }
 
-    /// The same without the features in `bits` (a stage whose code does not read them).
-    pub fn without(self, bits: u32) -> Variant {
-        Variant(self.0 & !bits)
-    }
-
     /// Whether it compiles in the cumulonimbus towers.
     pub fn towers(self) -> bool {
         self.0 & super::frame::flags::TOWERS != 0
@@ -218,7 +213,7 @@ impl MarchPass {
             ],
         );
         MarchPass {
-            pipelines: StagePipelines::new("march", layout, module, &[]),
+            pipelines: StagePipelines::new("march", layout, module, &[], 0),
             layouts,
             uniforms,
             counters,
@@ -238,14 +233,16 @@ impl MarchPass {
 
     /// A compute stage that evaluates the cloud as the march does: the march's device and map
     /// groups, then its own bindings as group `GROUP_TARGET`; entry point `main`, with these
-    /// pipeline-overridable constants besides the variant's. Returns its pipelines and its own
-    /// group's layout.
+    /// pipeline-overridable constants besides the variant's; `unread`: the feature flags its
+    /// code does not read (frames differing only in them share a pipeline). Returns its
+    /// pipelines and its own group's layout.
     pub fn cloud_stage(
         &self,
         gpu: &Gpu,
         label: &str,
         (own, source): (&[Binding], &str),
         constants: &[(&'static str, f64)],
+        unread: u32,
     ) -> (StagePipelines, wgpu::BindGroupLayout) {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::COMPUTE;
@@ -257,7 +254,7 @@ impl MarchPass {
             immediate_size: 0,
         });
         let module = shader::module(dev, label, source);
-        let pipelines = StagePipelines::new(label, pipeline_layout, module, constants);
+        let pipelines = StagePipelines::new(label, pipeline_layout, module, constants, unread);
         (pipelines, own_layout)
     }
 
@@ -344,6 +341,8 @@ pub struct StagePipelines {
     module: wgpu::ShaderModule,
     /// The stage's own constants, besides the variant's.
     constants: Vec<(&'static str, f64)>,
+    /// The feature flags the stage's code does not read: left out of its variants.
+    unread: u32,
     compiled: Mutex<HashMap<Variant, wgpu::ComputePipeline>>,
 }
 
@@ -353,18 +352,21 @@ impl StagePipelines {
         layout: wgpu::PipelineLayout,
         module: wgpu::ShaderModule,
         constants: &[(&'static str, f64)],
+        unread: u32,
     ) -> StagePipelines {
         StagePipelines {
             label: label.to_string(),
             layout,
             module,
             constants: constants.to_vec(),
+            unread,
             compiled: Mutex::default(),
         }
     }
 
-    /// The pipeline of a variant (compiled on first use).
+    /// The pipeline for a frame's variant (compiled on first use).
     pub fn get(&self, gpu: &Gpu, v: Variant) -> wgpu::ComputePipeline {
+        let v = Variant(v.0 & !self.unread);
         self.lock()
             .entry(v)
             .or_insert_with(|| {

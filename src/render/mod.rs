@@ -884,7 +884,7 @@ impl Renderer {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let out = pass.encode(
             &self.gpu,
-            march::Variant::of(uniforms.flags).without(frame::flags::NO_SKY),
+            march::Variant::of(uniforms.flags),
             &mut enc,
             (self.march.device_bind(), &self.map_bind),
             columns,

@@ -52,8 +52,10 @@ pub struct SectionPass {
 
 impl SectionPass {
     pub fn new(gpu: &Gpu, march: &MarchPass) -> SectionPass {
+        // Its frame is a top-down one, whose view the section does not draw.
+        let unread = super::frame::flags::NO_SKY;
         let (pipelines, layout) =
-            march.cloud_stage(gpu, "section", (OWN_BINDINGS, shader::SECTION), &[]);
+            march.cloud_stage(gpu, "section", (OWN_BINDINGS, shader::SECTION), &[], unread);
         SectionPass { pipelines, layout }
     }
 

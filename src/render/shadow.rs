@@ -266,6 +266,8 @@ impl ShadowPass {
             "shadow",
             (OWN_BINDINGS, shader::SHADOW),
             &[("MEAN_DENSITY", 1.0)],
+            // The light volume takes no detail noise and draws no view.
+            flags::DETAIL | flags::NO_SKY,
         );
         let params_buffer = |label| {
             dev.create_buffer(&wgpu::BufferDescriptor {
@@ -480,9 +482,7 @@ impl ShadowPass {
                 label: Some("shadow"),
                 timestamp_writes: None,
             });
-            // The light volume takes no detail noise and draws no view.
-            let v = Variant::of(u.flags).without(flags::DETAIL | flags::NO_SKY);
-            pass.set_pipeline(&self.pipelines.get(gpu, v));
+            pass.set_pipeline(&self.pipelines.get(gpu, Variant::of(u.flags)));
             pass.set_bind_group(0, march.device_bind(), &[]);
             pass.set_bind_group(1, map_bind, &[]);
             pass.set_bind_group(GROUP_TARGET, &self.volumes[target].own_bind, &[]);
