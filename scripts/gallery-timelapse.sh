@@ -6,12 +6,12 @@
 #
 # The Sun is held (--sun-dir) and the exposure fixed, so that only the weather changes: over
 # these 6 h the real Sun sets over Europe (the whole view would go dark).
-# Needs the series in ../shared/data/gfs-series/ and python3 with PIL.
+# Needs the series in data-samples/gfs-series/ and python3 with PIL.
 # STRATUS=/path/to/stratus uses a prebuilt renderer instead of `cargo build --release`.
 # Usage: [STRATUS=...] bash scripts/gallery-timelapse.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-series=../shared/data/gfs-series/gfs.t18z.pgrb2.2p50
+series=data-samples/gfs-series/gfs.t18z.pgrb2.2p50
 out=docs/gallery/timelapse
 . scripts/gallery-setup.sh
 "$STRATUS" ingest "$series.f000" "$series.f006" --region 30,70,-60,40 --size 1024x512 \

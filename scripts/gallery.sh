@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# Regenerate docs/gallery/ from the real GFS sample (../shared/data): East Asia at 400 hPa (the
+# Regenerate docs/gallery/ from the real GFS sample (data-samples/gfs): East Asia at 400 hPa (the
 # paper's case) and with all layers; four views each: 10 km above the deck at noon and at
 # dusk, inside the layer, and the horizon from the ground, placed where the map has broken cloud. Usage: bash scripts/gallery.sh [preset]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset=${1:-high}
-gfs=../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
+gfs=data-samples/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
 out=docs/gallery
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 S=${1:-target/release/stratus}
 OUT=${OUT:-gpu-bench-out}
 mkdir -p "$OUT"
-G=../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
+G=data-samples/gfs/gfs.t12z.pgrbf120.2p5deg.grib2
 [ -e "$G" ] || G=data-samples/gfs-2011011012-f120-2p5.grib2
 
 "$S" ingest "$G" --region 0,55,39,105 --size 1300x1100 --out "$OUT/ea.png" | tee "$OUT/ingest.txt"

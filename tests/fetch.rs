@@ -16,9 +16,9 @@ use std::time::{Duration, Instant};
 use stratus_ingest::fetch::idx;
 use stratus_ingest::grib::{self, MessageInfo, SurfaceType};
 
-fn shared(rel: &str) -> PathBuf {
+fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
+        .join("data-samples")
         .join(rel)
 }
 
@@ -48,12 +48,12 @@ fn tree() -> (tempfile::TempDir, PathBuf) {
     };
     for s in ["f000", "f006"] {
         put(
-            shared(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{s}")),
+            sample(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{s}")),
             &format!("{SERIES}/gfs.t18z.pgrb2.2p50.{s}"),
         );
     }
     put(
-        shared("gfs/gfs.t12z.pgrbf120.2p5deg.grib2"),
+        sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2"),
         "gfs.20110110/12/atmos/gfs.t12z.pgrb2.2p50.f120",
     );
     (dir, root)
@@ -389,7 +389,7 @@ fn fetches_the_right_messages_byte_for_byte() {
     let o = fetch(&server, &out, &["--step", "0,6"]);
     assert!(o.status.success(), "{}", stderr(&o));
     for s in ["f000", "f006"] {
-        let want = expected_default(&shared(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{s}")));
+        let want = expected_default(&sample(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{s}")));
         let got = std::fs::read(out_file(&out, s)).unwrap();
         assert!(
             got.len() > 100_000 && got == want,
@@ -436,7 +436,7 @@ fn fetches_the_right_messages_byte_for_byte() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let src = std::fs::read(shared("gfs/gfs.t12z.pgrbf120.2p5deg.grib2")).unwrap();
+    let src = std::fs::read(sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2")).unwrap();
     let want = pick_bytes(&src, |m| {
         matches!(m.parameter(), (0, 1, 1) | (0, 2, 2))
             && m.pressure_hpa().is_some_and(|h| h == 850.0 || h == 500.0)
@@ -451,7 +451,7 @@ fn fetches_the_right_messages_byte_for_byte() {
 #[test]
 fn transient_faults_are_retried() {
     let (_d, root) = tree();
-    let want = expected_default(&shared("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
+    let want = expected_default(&sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
     let cases: [(&str, Faults); 4] = [
         (
             "dropped",
@@ -671,7 +671,7 @@ fn an_interrupted_fetch_resumes_with_only_what_is_missing() {
     let server = Server::start(&root, Faults::default());
     let o = fetch(&server, &out, &["--step", "6"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let want = expected_default(&shared("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
+    let want = expected_default(&sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
     assert_eq!(std::fs::read(out_file(&out, "f006")).unwrap(), want);
     let second = server.served_ranges();
     assert!(

@@ -30,7 +30,7 @@ fn sample_grib() -> PathBuf {
 }
 
 fn gfs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data-samples/gfs/gfs.t12z.pgrbf120.2p5deg.grib2")
 }
 
 /// Ingest the sample over `region` to `png` (its sidecar beside it); returns the sidecar.

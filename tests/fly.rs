@@ -242,11 +242,10 @@ fn valid_minutes(line: &str) -> Option<u32> {
 /// are at most 40 simulated minutes).
 #[test]
 fn window_flies_a_series_with_time_running() {
-    let f0 = common::shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
-    let f6 = common::shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    let f0 = common::sample("gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = common::sample("gfs-series/gfs.t18z.pgrb2.2p50.f006");
     if !(f0.is_file() && f6.is_file()) {
-        eprintln!("skipped: ../shared/data/gfs-series not found");
-        return;
+        panic!("data-samples/gfs-series not found");
     }
     let x = Xvfb::start();
     let dir = tempfile::tempdir().unwrap();

@@ -563,7 +563,7 @@ fn an_rh_only_file_gives_the_coverage_bands_alone() {
         return;
     }
     let rh = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
+        .join("data-samples/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
     let dir = tempfile::tempdir().unwrap();
     let tif = dir.path().join("rh.tif");
     let o = stratus(&[

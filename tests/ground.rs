@@ -6,7 +6,7 @@
 //! with exit code 2 and nothing written.
 
 mod common;
-use common::{real_map, shared, stratus, synthetic_map};
+use common::{real_map, sample, stratus, synthetic_map};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -15,7 +15,7 @@ use stratus_ingest::grib::{self, SurfaceType};
 use stratus_ingest::spline::{Interp, Tap, WRAP_PAD};
 
 fn gfs() -> PathBuf {
-    shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2")
+    sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2")
 }
 
 /// Tibet and India (20–45°N, 70–105°E), big enough for 7 lattice texels per grid cell.
@@ -279,8 +279,8 @@ fn a_flight_under_the_terrain_is_lifted_with_a_warning() {
 fn every_series_step_gets_its_ground() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("s.png");
-    let f0 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
-    let f6 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    let f0 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f006");
     let o = stratus(&[
         "ingest",
         f0.to_str().unwrap(),

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{real_map, shared, stratus};
+use common::{real_map, sample, stratus};
 use stratus_ingest::encode::fixtures;
 
 const EA: [&str; 4] = ["--region", "0,55,39,105", "--size", "130x110"];
@@ -49,7 +49,7 @@ fn write_tmp(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 
 #[test]
 fn real_gfs_file_ingests_and_inspects() {
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let o = stratus(&["inspect", gfs.to_str().unwrap()]);
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
@@ -97,7 +97,7 @@ fn real_gfs_file_ingests_and_inspects() {
 
 #[test]
 fn dateline_region_in_both_conventions_gives_the_same_map() {
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let dir = tempfile::tempdir().unwrap();
     let mut maps = Vec::new();
     for (i, region) in ["10,50,150,-150", "10,50,150,210"].iter().enumerate() {
@@ -121,7 +121,7 @@ fn dateline_region_in_both_conventions_gives_the_same_map() {
 
 #[test]
 fn all_zero_rh_gives_an_all_zero_map() {
-    let f = shared("data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
+    let f = sample("gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("zero.png");
     let o = stratus(&[
@@ -145,7 +145,7 @@ fn all_zero_rh_gives_an_all_zero_map() {
 
 #[test]
 fn file_without_rh_says_what_it_holds() {
-    let f = shared("data/gfs/gfs.t12z.pgrb2.0p25.f023-PV-TMP-missing.grib2");
+    let f = sample("gfs/gfs.t12z.pgrb2.0p25.f023-PV-TMP-missing.grib2");
     expect_refused(&f, &[], "no relative humidity in", true);
     expect_refused(&f, &[], "it holds: t on PV surface -2 PVU", false);
 }
@@ -186,7 +186,7 @@ fn bad_files_are_refused_cleanly() {
 
 #[test]
 fn absent_level_lists_the_levels_present() {
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     expect_refused(
         &gfs,
         &["--level", "420"],
@@ -197,7 +197,7 @@ fn absent_level_lists_the_levels_present() {
 
 #[test]
 fn bad_options_are_refused() {
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     for (region, size, needle) in [
         ("50,10,0,10", "10x10", "south"),
         ("-95,10,0,10", "10x10", "latitudes"),
@@ -232,7 +232,7 @@ fn bad_options_are_refused() {
 fn bit_flips_in_a_real_message_never_panic_or_leave_output() {
     // Flip bits through the data section of the real 400 hPa RH message (complex packing with
     // spatial differencing). Each result is either a clean map or a clean one-line refusal.
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let bytes = std::fs::read(&gfs).unwrap();
     let msgs = stratus_ingest::grib::scan(&bytes).unwrap();
     let m = msgs

@@ -37,7 +37,7 @@ fn cloud_luminance(o: &Output) -> (f64, usize) {
 
 /// The column's cloud water (kg m⁻²) at a point on the 2.5° grid, decoded from the file.
 fn cwat_at(lat: f64, lon_east: f64) -> f64 {
-    let bytes = std::fs::read(common::shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2"))
+    let bytes = std::fs::read(common::sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2"))
         .expect("the real GFS sample");
     let msgs = stratus_ingest::grib::scan(&bytes).expect("scan");
     let m = msgs

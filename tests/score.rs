@@ -14,13 +14,13 @@ use stratus_ingest::pipeline::{IngestOptions, Plan};
 use stratus_ingest::region::Region;
 use stratus_ingest::spline::Interp;
 
-fn shared(rel: &str) -> PathBuf {
+fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared")
+        .join("data-samples")
         .join(rel)
 }
 
-const GFS: &str = "data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2";
+const GFS: &str = "gfs/gfs.t12z.pgrbf120.2p5deg.grib2";
 /// The CI gate (issue 13): DSC ≥ 0.95 at every preset from fast up, East Asia and the North
 /// Atlantic, 400 hPa and all layers, scored in the default 4×4 blocks (a cumulus coverage is
 /// an area). Measured here (docs/score.md): 0.978–0.990; a wrong render scores below 0.75
@@ -30,7 +30,7 @@ const EAST_ASIA: &str = "0,55,39,105";
 const NORTH_ATLANTIC: &str = "30,70,-60,30";
 
 fn gate(region: &str, extra: &[&str], preset: &str) {
-    let g = shared(GFS);
+    let g = sample(GFS);
     let mut args = vec![
         "score",
         "--grib",
@@ -76,7 +76,7 @@ fn gate_all_layers_every_preset_both_regions() {
 }
 
 fn east_asia(level: Option<f64>) -> CloudMap {
-    let bytes = std::fs::read(shared(GFS)).unwrap();
+    let bytes = std::fs::read(sample(GFS)).unwrap();
     let sel = match level {
         Some(l) => LevelSelect::One(l),
         None => LevelSelect::AllBelow(100.0),
@@ -133,7 +133,7 @@ fn wrong_renders_score_far_lower() {
 #[test]
 fn empty_masks_and_the_gate_failing() {
     // An all-zero real field: both masks empty → DSC 1 with a note, not a division by zero.
-    let z = shared("data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
+    let z = sample("gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2");
     let o = stratus(&[
         "score",
         "--grib",
@@ -161,7 +161,7 @@ fn empty_masks_and_the_gate_failing() {
         .unwrap()
         .contains("both masks are empty"));
     // An impossible gate exits 1 (not 2: the run worked, the score is too low).
-    let g = shared(GFS);
+    let g = sample(GFS);
     let dir = tempfile::tempdir().unwrap();
     let diff = dir.path().join("d.png");
     let o = stratus(&[

@@ -7,23 +7,19 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{shared, stratus};
+use common::{sample, stratus};
 use stratus_ingest::cloudmap::CloudMap;
 
 const REGION: [&str; 4] = ["--region", "30,70,-60,40", "--size", "256x128"];
 
-/// The two series files, or `None` (with the reason printed) where ../shared is absent.
+/// The two series files, or `None` (with the reason printed) (a test fails where they are absent).
 fn steps() -> Option<(PathBuf, PathBuf)> {
-    let f0 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
-    let f6 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    let f0 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f006");
     if f0.is_file() && f6.is_file() {
         Some((f0, f6))
     } else {
-        eprintln!(
-            "skipped: {} not found (../shared/data/gfs-series)",
-            f0.display()
-        );
-        None
+        panic!("{} not found (data-samples/gfs-series)", f0.display())
     }
 }
 

@@ -14,19 +14,18 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use chrono::{DateTime, Duration, Utc};
-use common::{shared, stratus};
+use common::{sample, stratus};
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
 use stratus::score::{self, compare, mask};
 use stratus::timeline::{open_scene, Timeline};
 use stratus_ingest::series::{blend, Series};
 
-/// Ingest the two real steps into `dir/na.json` (None where ../shared is absent).
+/// Ingest the two real steps into `dir/na.json`.
 fn real_series(dir: &Path, size: &str) -> Option<PathBuf> {
-    let f0 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f000");
-    let f6 = shared("data/gfs-series/gfs.t18z.pgrb2.2p50.f006");
+    let f0 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f000");
+    let f6 = sample("gfs-series/gfs.t18z.pgrb2.2p50.f006");
     if !(f0.is_file() && f6.is_file()) {
-        eprintln!("skipped: ../shared/data/gfs-series not found");
-        return None;
+        panic!("data-samples/gfs-series not found");
     }
     let out = dir.join("na.png");
     let o = stratus(&[

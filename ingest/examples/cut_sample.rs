@@ -4,7 +4,7 @@
 //!
 //! ```sh
 //! cargo run -p stratus-ingest --example cut_sample -- \
-//!     ../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2 data-samples/gfs-2011011012-f120-2p5.grib2
+//!     data-samples/gfs/gfs.t12z.pgrbf120.2p5deg.grib2 data-samples/gfs-2011011012-f120-2p5.grib2
 //! ```
 //!
 //! The selection is the table `RULES`; `data-samples/README.md` says what each rule is for. The

@@ -9,7 +9,7 @@ use stratus_ingest::grib;
 
 #[test]
 fn generated_inventories_locate_every_message() {
-    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-samples");
     for rel in [
         "gfs/gfs.t12z.pgrbf120.2p5deg.grib2",
         "gfs-series/gfs.t18z.pgrb2.2p50.f000",

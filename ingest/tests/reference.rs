@@ -8,9 +8,9 @@ use stratus_ingest::pipeline::{IngestOptions, Plan};
 use stratus_ingest::spline::Interp;
 use stratus_ingest::Region;
 
-fn shared(rel: &str) -> PathBuf {
+fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared")
+        .join("../data-samples")
         .join(rel)
 }
 
@@ -30,8 +30,8 @@ fn read_grey16(path: &Path) -> (u32, u32, Vec<f64>) {
 
 /// (mean absolute error, 99th percentile of absolute error) of the A channel vs the reference.
 fn errors(interp: Interp) -> (f64, f64) {
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
-    let reference = shared("data/reference/east-asia-400hPa-rhcr0.65-1300x1100.png");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let reference = sample("reference/east-asia-400hPa-rhcr0.65-1300x1100.png");
     let (w, h, refv) = read_grey16(&reference);
     let fc = Forecast::open(&gfs, LevelSelect::One(400.0)).unwrap();
     let plan = Plan::new(
@@ -79,7 +79,7 @@ fn cheaper_methods_err_more_than_the_spline() {
 #[test]
 fn rh_cr_extremes_stay_finite_and_ordered() {
     // rh_cr 0: any humidity is cloud; rh_cr 0.9999: only saturated air; 1.0 is refused.
-    let gfs = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let fc = Forecast::open(&gfs, LevelSelect::One(400.0)).unwrap();
     let mut plan = Plan::new(
         &fc,

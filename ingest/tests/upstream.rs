@@ -6,7 +6,7 @@ use std::path::Path;
 #[test]
 fn gribberish_lists_a_cut_off_last_message_as_whole_and_stratus_refuses_it() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+        .join("../data-samples/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let bytes = std::fs::read(path).unwrap();
     let whole = gribberish::message::MessageIterator::from_data(&bytes, 0).count();
     let cut = &bytes[..bytes.len() - 5000];

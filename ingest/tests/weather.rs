@@ -14,20 +14,19 @@ use stratus_ingest::structure::{unpack_source, Probe, ProbeLayer};
 use stratus_ingest::weather::{CloudType, PointSource};
 use stratus_ingest::{CloudMap, LayerKind, Region};
 
-fn shared(rel: &str) -> PathBuf {
+fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared")
+        .join("../data-samples")
         .join(rel)
 }
 
-/// The real 2.5° sample, or `None` (with the reason printed) outside the checkout layout.
+/// The real 2.5° sample (a test fails where it is absent).
 fn real(rel: &str) -> Option<PathBuf> {
-    let p = shared(rel);
+    let p = sample(rel);
     if p.exists() {
         Some(p)
     } else {
-        eprintln!("skipped: {} is absent (run from the checkout)", p.display());
-        None
+        panic!("{} is absent", p.display())
     }
 }
 
@@ -54,7 +53,7 @@ fn png_hash_without_id(bytes: &[u8]) -> u64 {
 }
 
 fn coverage_png_hash(region: &str, size: (u32, u32), select: LevelSelect) -> u64 {
-    let gfs = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2").unwrap();
+    let gfs = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2").unwrap();
     let fc = Forecast::open(&gfs, select).unwrap();
     let plan = Plan::new(
         &fc,
@@ -77,7 +76,7 @@ fn coverage_png_hash(region: &str, size: (u32, u32), select: LevelSelect) -> u64
 /// type and wind images are added beside the coverage PNG, never into it.
 #[test]
 fn coverage_png_is_byte_identical_to_before() {
-    if real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2").is_none() {
+    if real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2").is_none() {
         return;
     }
     let cases = [
@@ -116,7 +115,7 @@ fn coverage_png_is_byte_identical_to_before() {
 /// counts 343 fields in 307 messages.
 #[test]
 fn every_field_of_a_multi_field_message_decodes() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let bytes = std::fs::read(&gfs).unwrap();
@@ -190,7 +189,7 @@ fn sources(m: &CloudMap, k: LayerKind) -> Vec<AltitudeSource> {
 /// 25°W GFS's middle cloud is 625–417 hPa, 3561–6472 m with that point's gh.
 #[test]
 fn base_and_top_come_from_gfs_then_the_rh_column() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -386,7 +385,7 @@ fn tamper(path: &Path, size: Option<(u32, u32)>, f: impl Fn(&mut [u8])) {
 /// or a sidecar listing only some: one line naming the file, never a panic.
 #[test]
 fn bad_extra_images_are_refused_in_one_line() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -468,7 +467,7 @@ fn bad_extra_images_are_refused_in_one_line() {
 /// every structure image at the map's size) still loads, its images taken as the map's pixels.
 #[test]
 fn a_version_3_sidecar_without_a_structure_grid_loads_at_the_map_size() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();
@@ -506,7 +505,7 @@ fn a_version_3_sidecar_without_a_structure_grid_loads_at_the_map_size() {
 /// The map built in memory (the renderer's live path) holds what the written set holds.
 #[test]
 fn built_and_written_structure_agree() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();
@@ -583,7 +582,7 @@ fn probe_differences(a: &CloudMap, b: &CloudMap, points: &[(f64, f64)]) -> (Vec<
 /// the 0.5 m quantisation; type and source everywhere alike.
 #[test]
 fn structure_images_are_reduced_and_probe_like_full_resolution() {
-    let Some(gfs) = real("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
+    let Some(gfs) = real("gfs/gfs.t12z.pgrbf120.2p5deg.grib2") else {
         return;
     };
     let fc = Forecast::open(&gfs, LevelSelect::AllBelow(DEFAULT_TOP_HPA)).unwrap();

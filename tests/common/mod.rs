@@ -1,4 +1,4 @@
-//! Helpers the end-to-end tests share: running the binary, finding the shared data, ingesting
+//! Helpers the end-to-end tests share: running the binary, finding the sample data, ingesting
 //! the synthetic sample. (Each test crate uses a part of it, hence the allow.)
 #![allow(dead_code)]
 
@@ -14,10 +14,10 @@ pub fn stratus(args: &[&str]) -> Output {
         .expect("run stratus")
 }
 
-/// A path under `../shared` (the real GFS files beside the checkout).
-pub fn shared(rel: &str) -> PathBuf {
+/// A path under `data-samples/` (the real GFS files and the synthetic sample, in the repository).
+pub fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared")
+        .join("data-samples")
         .join(rel)
 }
 
@@ -40,10 +40,10 @@ pub fn synthetic_map(dir: &Path) -> PathBuf {
     dir.join("m.json")
 }
 
-/// Ingest the real GFS sample (`../shared`, all layers) over `region` at `size` into
+/// Ingest the real GFS sample (`data-samples/gfs/`, all layers) over `region` at `size` into
 /// `dir/NAME.png`, returning the sidecar.
 pub fn real_map(dir: &Path, name: &str, region: &str, size: &str) -> PathBuf {
-    let file = shared("data/gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let file = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
     let png = dir.join(format!("{name}.png"));
     let o = stratus(&[
         "ingest",
