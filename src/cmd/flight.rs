@@ -297,6 +297,18 @@ fn render_and_commit(
     let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
     sweep_stale_staging(&a.out, staging.path());
     let mut r = Renderer::new(a.look.gpu()?, map);
+    if let Cameras::Follow(f) = &mut *source {
+        // The first frames pay for what the renderer builds on first use (tens of seconds on a
+        // CPU driver): paid here, before the recording's clock starts, or frame 1 would come
+        // that much after frame 0 and the frames after it in a burst. At another size than
+        // the frames', so frame 0 shares no history with these and is marched whole.
+        let cam = f.camera_now();
+        let size = if (w, h) == (8, 8) { 16 } else { 8 };
+        for i in 0..2 {
+            let s = frame_settings(&mut r, settings, None, &mut timeline, i)?;
+            r.render(&View::Perspective(cam), size, size, &s)?;
+        }
+    }
     let pb = progress_bar(n, "frames");
     let mut lifted = Lifted::default();
     for i in 0..n {
@@ -307,15 +319,7 @@ fn render_and_commit(
             }
         }
         lifted.lift(i, &mut cam, map);
-        let mut s = settings.clone();
-        if let Some(t) = time {
-            s.time = t;
-        }
-        if let Some(tl) = &mut timeline {
-            s.drift_m = tl.prepare(&mut r, s.time)?;
-            s.streak_wind = Some(tl.streak_wind());
-        }
-        s.frame_index = i as u32;
+        let s = frame_settings(&mut r, settings, time, &mut timeline, i)?;
         let frame = r.render(&View::Perspective(cam), w, h, &s)?;
         save_png(&staging.path().join(frame_name(i)), &frame.to_image())?;
         pb.inc(1);
@@ -354,6 +358,27 @@ fn render_and_commit(
         }
     }
     Ok((removed, mp4, lifted))
+}
+
+/// Frame `i`'s settings: the path's time where it keys one, and a series' steps around it
+/// made ready on the GPU.
+fn frame_settings(
+    r: &mut Renderer,
+    settings: &Settings,
+    time: Option<DateTime<Utc>>,
+    timeline: &mut Option<stratus::timeline::Timeline>,
+    i: u64,
+) -> anyhow::Result<Settings> {
+    let mut s = settings.clone();
+    if let Some(t) = time {
+        s.time = t;
+    }
+    if let Some(tl) = timeline {
+        s.drift_m = tl.prepare(r, s.time)?;
+        s.streak_wind = Some(tl.streak_wind());
+    }
+    s.frame_index = i as u32;
+    Ok(s)
 }
 
 /// Frames whose camera the path (or the simulator) put below the map's terrain: each is
@@ -532,17 +557,7 @@ impl Following {
         let now = Instant::now();
         self.follower.poll(now);
         self.note_silence(i, now);
-        // wait_first saw a packet, so there is a pose; the fallback is never used.
-        let fix = self.follower.pose(now).unwrap_or(Fix {
-            lat: 0.0,
-            lon: 0.0,
-            alt_m: 1000.0,
-            heading: 0.0,
-            pitch: 0.0,
-            roll: 0.0,
-            ground_speed: None,
-            climb: None,
-        });
+        let fix = self.fix(now);
         // For scripts/flightgear-check.sh: what each frame was rendered from, on the wall clock
         // a packet logger beside the simulator keeps (RUST_LOG=stratus::follow=debug).
         let unix = std::time::SystemTime::now()
@@ -559,9 +574,36 @@ impl Following {
             fix.roll,
             self.silent
         );
+        self.camera(&fix)
+    }
+
+    /// The camera at the aircraft's pose now (what has arrived read first), for the warm-up.
+    fn camera_now(&mut self) -> Camera {
+        let now = Instant::now();
+        self.follower.poll(now);
+        let fix = self.fix(now);
+        self.camera(&fix)
+    }
+
+    fn camera(&self, fix: &Fix) -> Camera {
         let mut cam = fix.camera();
         cam.fov_deg = self.fov;
         cam
+    }
+
+    /// The pose at `now`.
+    fn fix(&self, now: Instant) -> Fix {
+        // wait_first saw a packet, so there is a pose; the fallback is never used.
+        self.follower.pose(now).unwrap_or(Fix {
+            lat: 0.0,
+            lon: 0.0,
+            alt_m: 1000.0,
+            heading: 0.0,
+            pitch: 0.0,
+            roll: 0.0,
+            ground_speed: None,
+            climb: None,
+        })
     }
 }
 
