@@ -119,7 +119,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         (None, Some(follow)) => {
             let n = follow_frames(a.duration.unwrap_or(0.0), a.fps, a.max_frames)?;
-            (Cameras::Follow(follow_setup(&a, follow)?), n)
+            (Cameras::Follow(Box::new(follow_setup(&a, follow)?)), n)
         }
         (None, None) => anyhow::bail!("--path or --follow is required"),
     };
@@ -444,7 +444,7 @@ fn sweep_stale_staging(out: &Path, ours: &Path) {
 /// Where each frame's camera comes from.
 enum Cameras {
     Path(FlightPath),
-    Follow(Following),
+    Follow(Box<Following>),
 }
 
 impl Cameras {

@@ -7,7 +7,10 @@ use stratus::follow::{Fix, ALT_RANGE_M, MAX_CLIMB, MAX_EXTRAPOLATION, MAX_SPEED}
 pub fn check(fix: &Fix) {
     assert!((-90.0..=90.0).contains(&fix.lat), "{fix:?}");
     assert!((-180.0..=180.0).contains(&fix.lon), "{fix:?}");
-    assert!((ALT_RANGE_M.0..=ALT_RANGE_M.1).contains(&fix.alt_m), "{fix:?}");
+    assert!(
+        (ALT_RANGE_M.0..=ALT_RANGE_M.1).contains(&fix.alt_m),
+        "{fix:?}"
+    );
     // rem_euclid may round a tiny negative heading up to 360 itself: the same direction.
     assert!((0.0..=360.0).contains(&fix.heading), "{fix:?}");
     assert!((-90.0..=90.0).contains(&fix.pitch), "{fix:?}");
