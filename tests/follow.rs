@@ -1,7 +1,8 @@
 //! `--follow` against test senders on loopback that speak each simulator's format as its
 //! documentation gives it (written here from the documents, not with the library's encoders):
 //! the pose is what was sent, garbage is counted and changes nothing, silence is reported, and
-//! `flight --follow` records the same frame `render` makes at that camera.
+//! `flight --follow` records the same frame `render` makes at that camera, says where it waits,
+//! reports the speed the aircraft flew and counts the frames a silent simulator left frozen.
 
 mod common;
 use common::{stratus, synthetic_map};
@@ -26,14 +27,29 @@ const PITCH: f32 = -12.0;
 /// X-Plane's data output ("Exchanging Data with X-Plane"): `DATA`, one internal byte, then
 /// 36-byte rows of a little-endian i32 index and eight f32 values. Row 20: lat, lon, alt ft
 /// MSL, alt ft AGL, on runway, indicated alt, lat south, lon west; row 17: pitch, roll, true
-/// heading, magnetic heading. Unused slots hold -999.
+/// heading, magnetic heading; row 3: KIAS, KEAS, KTAS, KTGS, unused, then mph. Unused slots
+/// hold -999.
 fn xplane_packet(lat: f32, lon: f32, alt_ft: f32, heading: f32, pitch: f32, roll: f32) -> Vec<u8> {
+    // An aircraft holding still (slewed): ground speed 0.
+    xplane_rows(lat, lon, alt_ft, heading, pitch, roll, Some(0.0))
+}
+
+/// The same with the ground speed `ktgs` in row 3, or without row 3.
+fn xplane_rows(
+    lat: f32,
+    lon: f32,
+    alt_ft: f32,
+    heading: f32,
+    pitch: f32,
+    roll: f32,
+    ktgs: Option<f32>,
+) -> Vec<u8> {
     let mut p = Vec::new();
     p.extend_from_slice(b"DATA");
     p.push(0);
-    let rows: [(i32, [f32; 8]); 3] = [
-        // Row 3 (speeds), which users often tick too: skipped.
-        (3, [120.0, 118.0, 121.0, 139.0, -999.0, 138.0, 159.0, 142.0]),
+    let mut rows: Vec<(i32, [f32; 8])> = vec![
+        // Row 13 (trim, flaps), which users tick too: skipped.
+        (13, [0.1, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0, 0.0]),
         (
             17,
             [
@@ -47,8 +63,12 @@ fn xplane_packet(lat: f32, lon: f32, alt_ft: f32, heading: f32, pitch: f32, roll
                 -999.0,
             ],
         ),
-        (20, [lat, lon, alt_ft, 2000.0, 0.0, alt_ft, -999.0, -999.0]),
     ];
+    if let Some(kt) = ktgs {
+        rows.push((3, [kt, kt, kt, kt, -999.0, kt * 1.15, kt * 1.15, kt * 1.15]));
+    }
+    // Row 20 last: a packet cut short anywhere has no position (the garbage test's cuts).
+    rows.push((20, [lat, lon, alt_ft, 2000.0, 0.0, alt_ft, -999.0, -999.0]));
     for (index, values) in rows {
         p.extend_from_slice(&index.to_le_bytes());
         for v in values {
@@ -250,6 +270,17 @@ fn keep_sending(kind: Kind, port: u16, stop: Arc<AtomicBool>) -> thread::JoinHan
 }
 
 fn flight(map: &Path, follow: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    flight_for(map, follow, out, ("1", "2"), extra)
+}
+
+/// `flight --follow` for `duration` s at `fps`.
+fn flight_for(
+    map: &Path,
+    follow: &str,
+    out: &Path,
+    (duration, fps): (&str, &str),
+    extra: &[&str],
+) -> std::process::Output {
     let mut a = vec![
         "flight",
         "--map",
@@ -257,9 +288,9 @@ fn flight(map: &Path, follow: &str, out: &Path, extra: &[&str]) -> std::process:
         "--follow",
         follow,
         "--duration",
-        "1",
+        duration,
         "--fps",
-        "2",
+        fps,
         "--size",
         "64x36",
         "--preset",
@@ -386,10 +417,216 @@ fn the_shipped_protocol_sends_what_the_parser_reads() {
             "/position/altitude-ft",
             "/orientation/heading-deg",
             "/orientation/pitch-deg",
-            "/orientation/roll-deg"
+            "/orientation/roll-deg",
+            "/velocities/groundspeed-kt",
+            "/velocities/vertical-speed-fps"
         ]
     );
     assert!(xml.contains("<var_separator>,</var_separator>"));
     assert!(xml.contains("<line_separator>newline</line_separator>"));
-    assert!(xml.contains("--generic=socket,out,30,127.0.0.1,5505,udp,stratus"));
+    // XML forbids two dashes in a row inside a comment; FlightGear 2020.3 then refuses the
+    // whole file ("not well-formed (invalid token)") and sends nothing.
+    for comment in xml.split("<!--").skip(1) {
+        let body = comment.split("-->").next().unwrap();
+        assert!(
+            !body.contains("--") && !body.ends_with('-'),
+            "the protocol file must be XML: a comment holds \"--\""
+        );
+    }
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/fly.md")).unwrap();
+    assert!(doc.contains("--generic=socket,out,30,127.0.0.1,5505,udp,stratus"));
+}
+
+/// Metres east of 45.5° N that `metres` is, in degrees of longitude at `alt_m`.
+fn east_deg(metres: f64, alt_m: f64) -> f64 {
+    (metres / ((6_371_000.0 + alt_m) * 45.5f64.to_radians().cos())).to_degrees()
+}
+
+/// Sends an aircraft flying east at `speed` m/s (12 000 m, level) to `port` until stopped, a
+/// packet 10 to 60 ms after the one before (a busy simulator's uneven frames), each with the
+/// position at the moment it is sent. `with_speed`: the packets carry the ground speed too.
+fn fly_east(
+    kind: Kind,
+    port: u16,
+    speed: f64,
+    with_speed: bool,
+    stop: Arc<AtomicBool>,
+) -> thread::JoinHandle<()> {
+    thread::spawn(move || {
+        let s = sender();
+        let mut rng = Lcg(23);
+        let t0 = Instant::now();
+        let alt_m = 12_000.0;
+        while !stop.load(Ordering::Relaxed) {
+            let lon = -22.0 + east_deg(speed * t0.elapsed().as_secs_f64(), alt_m);
+            let kt = speed * 3600.0 / 1852.0;
+            let p = match (kind, with_speed) {
+                (Kind::FlightGear, false) => {
+                    flightgear_packet(45.5, lon, alt_m / FEET, 90.0, 0.0, 0.0)
+                }
+                (Kind::FlightGear, true) => format!(
+                    "{:.8},{lon:.8},{:.2},90.000,0.000,0.000,{kt:.2},0.00\n",
+                    45.5,
+                    alt_m / FEET
+                )
+                .into_bytes(),
+                (Kind::XPlane, _) => xplane_rows(
+                    45.5,
+                    lon as f32,
+                    (alt_m / FEET) as f32,
+                    90.0,
+                    0.0,
+                    0.0,
+                    with_speed.then_some(kt as f32),
+                ),
+            };
+            let _ = s.send_to(&p, ("127.0.0.1", port));
+            thread::sleep(Duration::from_millis(10 + rng.next() % 51));
+        }
+    })
+}
+
+/// The "ground speed over N frames: LO-HI m/s …" line's LO and HI.
+fn speed_range(stdout: &str) -> Option<(f64, f64)> {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("ground speed over"))?;
+    let range = line.split(": ").nth(1)?.split(" m/s").next()?;
+    let (lo, hi) = range.split_once('-')?;
+    Some((lo.parse().ok()?, hi.parse().ok()?))
+}
+
+#[test]
+fn the_recorded_speed_is_the_speed_flown_despite_uneven_packets() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = synthetic_map(dir.path());
+    // 150 kt east; packets 10-60 ms apart; a frame every 0.25 s polls several at once.
+    let speed = 77.17;
+    for (kind, name, with_speed) in [
+        (Kind::FlightGear, "flightgear", false),
+        (Kind::XPlane, "xplane", false),
+        (Kind::FlightGear, "flightgear", true),
+        (Kind::XPlane, "xplane", true),
+    ] {
+        let port = free_port();
+        let stop = Arc::new(AtomicBool::new(false));
+        let t = fly_east(kind, port, speed, with_speed, stop.clone());
+        let out = dir.path().join(format!("speed-{name}-{with_speed}"));
+        let o = flight_for(&map, &format!("{name}:{port}"), &out, ("3", "4"), &[]);
+        stop.store(true, Ordering::Relaxed);
+        t.join().unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        let (lo, hi) = speed_range(&stdout).unwrap_or_else(|| panic!("{stdout}"));
+        for v in [lo, hi] {
+            assert!(
+                (v / speed - 1.0).abs() < 0.05,
+                "{name} (speeds sent: {with_speed}): {lo}-{hi} m/s, flown {speed}: {stdout}"
+            );
+        }
+        let source = if with_speed {
+            "the simulator's own"
+        } else {
+            "measured from packet arrival times"
+        };
+        assert!(stdout.contains(source), "{stdout}");
+        assert!(stdout.contains("; 0 of 12 frames held"), "{stdout}");
+        assert!(!stderr.contains("warning"), "{stderr}");
+    }
+}
+
+#[test]
+fn waiting_says_where_and_how_to_send() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = synthetic_map(dir.path());
+    for (kind, name, how) in [
+        (
+            Kind::FlightGear,
+            "flightgear",
+            "docs/flightgear/stratus.xml",
+        ),
+        (Kind::XPlane, "xplane", "Data Output"),
+    ] {
+        let port = free_port();
+        let out = dir.path().join(format!("never-{name}"));
+        let o = flight(&map, &format!("{name}:{port}"), &out, &["--wait", "0.5"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        let line = err
+            .lines()
+            .find(|l| l.starts_with("waiting"))
+            .unwrap_or_else(|| panic!("no waiting line: {err}"));
+        let want = format!(
+            "waiting up to 0.5 s (--wait) for {} on UDP port {port}",
+            kind.name()
+        );
+        assert!(line.starts_with(&want), "{line}");
+        assert!(line.contains(how) && line.contains("docs/fly.md"), "{line}");
+    }
+}
+
+#[test]
+fn a_simulator_gone_silent_is_warned_and_its_frozen_frames_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = synthetic_map(dir.path());
+    let port = free_port();
+    let stop = Arc::new(AtomicBool::new(false));
+    let t = fly_east(Kind::FlightGear, port, 77.17, true, stop.clone());
+    let out = dir.path().join("silent");
+    let child = {
+        let (map, out) = (map.clone(), out.clone());
+        let follow = format!("flightgear:{port}");
+        thread::spawn(move || flight_for(&map, &follow, &out, ("4", "4"), &[]))
+    };
+    // The simulator dies once the recording has begun (its staging folder exists; frame 0 is
+    // taken after the renderer starts): the recording goes on for 4 s, so at least its last
+    // frames come more than a second after the last packet, however slow the renderer.
+    let until = Instant::now() + Duration::from_secs(120);
+    let begun = |out: &Path| {
+        std::fs::read_dir(out)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .any(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with(".stratus-frames.")
+            })
+    };
+    while !begun(&out) && Instant::now() < until {
+        thread::sleep(Duration::from_millis(2));
+    }
+    stop.store(true, Ordering::Relaxed);
+    t.join().unwrap();
+    let o = child.join().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    // A recording with frozen frames is still a complete recording: exit 0, and said twice.
+    assert!(o.status.success(), "{stderr}");
+    let starts: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning: no packet from FlightGear for"))
+        .collect();
+    assert_eq!(
+        starts.len(),
+        1,
+        "one warning when the silence starts: {stderr}{stdout}"
+    );
+    // "FlightGear: N packets, 0 malformed (ignored); HELD of 16 frames held its last pose"
+    let held: u64 = stdout
+        .lines()
+        .find(|l| l.starts_with("FlightGear:"))
+        .and_then(|l| l.split("; ").nth(1))
+        .and_then(|s| s.strip_suffix(" of 16 frames held its last pose"))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!((1..=16).contains(&held), "{held} held: {stdout}");
+    assert!(
+        stderr.contains(&format!(
+            "warning: {held} of 16 frames hold FlightGear's last pose"
+        )),
+        "{stderr}"
+    );
 }

@@ -1,6 +1,8 @@
 //! `stratus flight`: a keyframed path rendered headless to a PNG sequence (and MP4 with ffmpeg),
 //! or with `--follow` a simulator's session: a frame every 1/fps s of wall time from the
-//! follower's pose for `--duration` s.
+//! follower's pose for `--duration` s. While the simulator is silent the frames hold its last
+//! pose: the run says so when the silence starts and counts those frames at the end (exit 0:
+//! the recording is complete, only its content is frozen; docs/fly.md).
 //!
 //! What the output folder holds afterwards (docs/files.md):
 //! - Before anything is rendered, the frame count and the disk it needs are checked against
@@ -24,7 +26,7 @@ use stratus_ingest::output::{check_output, STALE_TEMP_AGE};
 use stratus_ingest::region::parse_size;
 
 use stratus::flight::{FlightPath, DEFAULT_MAX_FRAMES};
-use stratus::follow::{Fix, Follower, Source};
+use stratus::follow::{Fix, Follower, Source, KNOT, STALE_AFTER};
 use stratus::picture::save_png;
 use stratus::render::{Camera, Renderer, Settings, View};
 
@@ -117,7 +119,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         (None, Some(follow)) => {
             let n = follow_frames(a.duration.unwrap_or(0.0), a.fps, a.max_frames)?;
-            (Cameras::Follow(follow_setup(&a, follow)?), n)
+            (Cameras::Follow(Box::new(follow_setup(&a, follow)?)), n)
         }
         (None, None) => anyhow::bail!("--path or --follow is required"),
     };
@@ -161,11 +163,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Cameras::Follow(f) = &mut source {
         let st = f.follower.status(Instant::now());
         out!(
-            "{}: {} packets, {} malformed (ignored)",
+            "{}: {} packets, {} malformed (ignored); {} of {n} frames held its last pose",
             st.kind.name(),
             st.received,
-            st.malformed
+            st.malformed,
+            f.held
         )?;
+        if let Some(line) = f.speed_line() {
+            out!("{line}")?;
+        }
+        if let Some(line) = f.held_line(n) {
+            eprintln!("{line}");
+        }
     }
     match mp4 {
         Mp4::Made => out!("{}", shown(&a.out.join(MP4)))?,
@@ -288,20 +297,29 @@ fn render_and_commit(
     let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
     sweep_stale_staging(&a.out, staging.path());
     let mut r = Renderer::new(a.look.gpu()?, map);
+    if let Cameras::Follow(f) = &mut *source {
+        // The first frames pay for what the renderer builds on first use (tens of seconds on a
+        // CPU driver): paid here, before the recording's clock starts, or frame 1 would come
+        // that much after frame 0 and the frames after it in a burst. At another size than
+        // the frames', so frame 0 shares no history with these and is marched whole.
+        let cam = f.camera_now();
+        let size = if (w, h) == (8, 8) { 16 } else { 8 };
+        for i in 0..2 {
+            let s = frame_settings(&mut r, settings, None, &mut timeline, i)?;
+            r.render(&View::Perspective(cam), size, size, &s)?;
+        }
+    }
     let pb = progress_bar(n, "frames");
     let mut lifted = Lifted::default();
     for i in 0..n {
         let (mut cam, time) = source.at(i, a.fps);
+        if let Cameras::Follow(f) = &mut *source {
+            if let Some(note) = f.note.take() {
+                pb.suspend(|| eprintln!("{note}"));
+            }
+        }
         lifted.lift(i, &mut cam, map);
-        let mut s = settings.clone();
-        if let Some(t) = time {
-            s.time = t;
-        }
-        if let Some(tl) = &mut timeline {
-            s.drift_m = tl.prepare(&mut r, s.time)?;
-            s.streak_wind = Some(tl.streak_wind());
-        }
-        s.frame_index = i as u32;
+        let s = frame_settings(&mut r, settings, time, &mut timeline, i)?;
         let frame = r.render(&View::Perspective(cam), w, h, &s)?;
         save_png(&staging.path().join(frame_name(i)), &frame.to_image())?;
         pb.inc(1);
@@ -340,6 +358,27 @@ fn render_and_commit(
         }
     }
     Ok((removed, mp4, lifted))
+}
+
+/// Frame `i`'s settings: the path's time where it keys one, and a series' steps around it
+/// made ready on the GPU.
+fn frame_settings(
+    r: &mut Renderer,
+    settings: &Settings,
+    time: Option<DateTime<Utc>>,
+    timeline: &mut Option<stratus::timeline::Timeline>,
+    i: u64,
+) -> anyhow::Result<Settings> {
+    let mut s = settings.clone();
+    if let Some(t) = time {
+        s.time = t;
+    }
+    if let Some(tl) = timeline {
+        s.drift_m = tl.prepare(r, s.time)?;
+        s.streak_wind = Some(tl.streak_wind());
+    }
+    s.frame_index = i as u32;
+    Ok(s)
 }
 
 /// Frames whose camera the path (or the simulator) put below the map's terrain: each is
@@ -405,7 +444,7 @@ fn sweep_stale_staging(out: &Path, ours: &Path) {
 /// Where each frame's camera comes from.
 enum Cameras {
     Path(FlightPath),
-    Follow(Following),
+    Follow(Box<Following>),
 }
 
 impl Cameras {
@@ -418,12 +457,25 @@ impl Cameras {
     }
 }
 
-/// A simulator being recorded: the follower and the wall clock the frames keep to.
+/// A simulator being recorded: the follower, the wall clock the frames keep to, and what the
+/// frames were rendered from.
 struct Following {
     follower: Follower,
     fov: f64,
     /// When frame 0 was taken; frame i is due i/fps s later.
     start: Option<Instant>,
+    /// Frames taken more than [`STALE_AFTER`] after the last packet (their pose is held), and
+    /// the first of them.
+    held: u64,
+    first_held: Option<u64>,
+    /// The last frame was held.
+    silent: bool,
+    /// The ground speed each frame with a known one was rendered at (m/s), and whether the
+    /// last was the simulator's own.
+    speeds: Vec<f64>,
+    reported: bool,
+    /// A line to print (above the progress bar) when a silence starts or ends.
+    note: Option<String>,
 }
 
 /// Longest --wait for the first packet: an hour.
@@ -455,12 +507,25 @@ fn follow_setup(a: &Args, follow: &str) -> anyhow::Result<Following> {
         follower: Follower::bind(source)?,
         fov: a.fov,
         start: None,
+        held: 0,
+        first_held: None,
+        silent: false,
+        speeds: Vec::new(),
+        reported: false,
+        note: None,
     })
 }
 
 impl Following {
     /// Wait up to `seconds` for the first good packet.
     fn wait_first(&mut self, seconds: f64) -> anyhow::Result<()> {
+        let source = self.follower.source();
+        eprintln!(
+            "waiting up to {seconds} s (--wait) for {} on UDP port {}: {}",
+            source.kind.name(),
+            source.port,
+            source.setup_hint()
+        );
         let until = Instant::now() + Duration::from_secs_f64(seconds);
         loop {
             self.follower.poll(Instant::now());
@@ -491,18 +556,112 @@ impl Following {
         }
         let now = Instant::now();
         self.follower.poll(now);
+        self.note_silence(i, now);
+        let fix = self.fix(now);
+        // For scripts/flightgear-check.sh: what each frame was rendered from, on the wall clock
+        // a packet logger beside the simulator keeps (RUST_LOG=stratus::follow=debug).
+        let unix = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        tracing::debug!(
+            target: "stratus::follow::frames",
+            "frame {i} unix {unix:.3} lat {:.7} lon {:.7} alt {:.1} heading {:.2} pitch {:.2} roll {:.2} held {}",
+            fix.lat,
+            fix.lon,
+            fix.alt_m,
+            fix.heading,
+            fix.pitch,
+            fix.roll,
+            self.silent
+        );
+        self.camera(&fix)
+    }
+
+    /// The camera at the aircraft's pose now (what has arrived read first), for the warm-up.
+    fn camera_now(&mut self) -> Camera {
+        let now = Instant::now();
+        self.follower.poll(now);
+        let fix = self.fix(now);
+        self.camera(&fix)
+    }
+
+    fn camera(&self, fix: &Fix) -> Camera {
+        let mut cam = fix.camera();
+        cam.fov_deg = self.fov;
+        cam
+    }
+
+    /// The pose at `now`.
+    fn fix(&self, now: Instant) -> Fix {
         // wait_first saw a packet, so there is a pose; the fallback is never used.
-        let fix = self.follower.pose(now).unwrap_or(Fix {
+        self.follower.pose(now).unwrap_or(Fix {
             lat: 0.0,
             lon: 0.0,
             alt_m: 1000.0,
             heading: 0.0,
             pitch: 0.0,
             roll: 0.0,
-        });
-        let mut cam = fix.camera();
-        cam.fov_deg = self.fov;
-        cam
+            ground_speed: None,
+            climb: None,
+        })
+    }
+}
+
+impl Following {
+    /// Count frame `i` as held when no packet came for over [`STALE_AFTER`], note when a
+    /// silence starts or ends, and log the speed a live frame is rendered at.
+    fn note_silence(&mut self, i: u64, now: Instant) {
+        let st = self.follower.status(now);
+        let held = st.stale_s.is_some();
+        let name = st.kind.name();
+        if held {
+            self.held += 1;
+            self.first_held.get_or_insert(i);
+            if !self.silent {
+                self.note = Some(format!(
+                    "warning: no packet from {name} for {:.1} s at frame {i}: the frames hold its last pose until packets come back",
+                    st.stale_s.unwrap_or(0.0)
+                ));
+            }
+        } else {
+            if self.silent {
+                self.note = Some(format!("{name}'s packets are back at frame {i}"));
+            }
+            if let Some(v) = self.follower.velocity() {
+                self.speeds.push(v.ground);
+                self.reported = v.reported;
+            }
+        }
+        self.silent = held;
+    }
+
+    /// The ground speeds the live frames were rendered at.
+    fn speed_line(&self) -> Option<String> {
+        let n = self.speeds.len();
+        let lo = self.speeds.iter().copied().reduce(f64::min)?;
+        let hi = self.speeds.iter().copied().reduce(f64::max)?;
+        let mean = self.speeds.iter().sum::<f64>() / n as f64;
+        let from = if self.reported {
+            "the simulator's own"
+        } else {
+            "measured from packet arrival times"
+        };
+        Some(format!(
+            "ground speed over {n} frames: {lo:.1}-{hi:.1} m/s ({:.0}-{:.0} kt), mean {mean:.1} m/s ({from})",
+            lo / KNOT,
+            hi / KNOT
+        ))
+    }
+
+    /// The warning at the end when any frame held the last pose.
+    fn held_line(&self, n: u64) -> Option<String> {
+        let first = self.first_held?;
+        Some(format!(
+            "warning: {} of {n} frames hold {}'s last pose: no packet had come for over {} s (first: frame {first}); the recording is complete, the simulator was silent",
+            self.held,
+            self.follower.source().kind.name(),
+            STALE_AFTER.as_secs_f64()
+        ))
     }
 }
 

@@ -103,6 +103,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(s) => Some(Follower::bind(s.parse::<Source>()?)?),
         None => None,
     };
+    if let Some(f) = &follow {
+        let s = f.source();
+        eprintln!(
+            "listening for {} on UDP port {} (the HUD counts its packets): {}",
+            s.kind.name(),
+            s.port,
+            s.setup_hint()
+        );
+    }
     let time = a.time.as_deref().map(parse_time).transpose()?;
     let path = a
         .path

@@ -2,22 +2,26 @@
 //! `docs/flightgear/stratus.xml`: one ASCII line per datagram,
 //!
 //! ```text
-//! latitude-deg,longitude-deg,altitude-ft,heading-deg,pitch-deg,roll-deg\n
+//! latitude-deg,longitude-deg,altitude-ft,heading-deg,pitch-deg,roll-deg,groundspeed-kt,vertical-speed-fps\n
 //! ```
 //!
 //! read from `/position/latitude-deg`, `/position/longitude-deg`, `/position/altitude-ft`
-//! (MSL), `/orientation/heading-deg` (true), `/orientation/pitch-deg` and
-//! `/orientation/roll-deg`. FlightGear is started with
+//! (MSL), `/orientation/heading-deg` (true), `/orientation/pitch-deg`,
+//! `/orientation/roll-deg`, `/velocities/groundspeed-kt` and `/velocities/vertical-speed-fps`.
+//! A line of the first six only (the file Stratus shipped before the speeds) is read too: the
+//! speed is then measured from packet times. FlightGear is started with
 //! `--generic=socket,out,30,HOST,5505,udp,stratus`.
 
-use super::{Fix, ParseError, FEET};
+use super::{Fix, ParseError, FEET, KNOT};
 
-/// Fields on a line.
-pub const FIELDS: usize = 6;
+/// Fields on a line: position and attitude, then the two speeds.
+pub const FIELDS: usize = 8;
+/// Fields on a line without the speeds.
+pub const FIELDS_WITHOUT_SPEEDS: usize = 6;
 /// Longest line accepted: six numbers printed with `%.8f` take well under 128 bytes.
 pub const MAX_LINE: usize = 256;
 
-/// Parse one datagram: one line of six comma-separated numbers ending in a newline. The
+/// Parse one datagram: one line of eight (or six) comma-separated numbers ending in a newline. The
 /// newline is required: FlightGear always sends the line separator, and without it a datagram
 /// cut short could still read as six numbers.
 pub fn parse(packet: &[u8]) -> Result<Fix, ParseError> {
@@ -42,16 +46,23 @@ pub fn parse(packet: &[u8]) -> Result<Fix, ParseError> {
             .map_err(|_| ParseError::Number(n))?;
         n += 1;
     }
-    if n != FIELDS {
-        return Err(ParseError::Fields(n));
+    let fix = Fix::checked(v[0], v[1], v[2] * FEET, v[3], v[4], v[5])?;
+    match n {
+        FIELDS => fix.with_motion(Some(v[6] * KNOT), Some(v[7] * FEET)),
+        FIELDS_WITHOUT_SPEEDS => Ok(fix),
+        _ => Err(ParseError::Fields(n)),
     }
-    Fix::checked(v[0], v[1], v[2] * FEET, v[3], v[4], v[5])
 }
 
-/// A line as the shipped protocol makes FlightGear send it (for tests and the loopback sender).
+/// A line as the shipped protocol makes FlightGear send it (for tests, fuzz seeds and the
+/// loopback sender): with the speeds when the fix has both, else the six fields without them.
 pub fn encode(fix: &Fix) -> Vec<u8> {
+    let speeds = match (fix.ground_speed, fix.climb) {
+        (Some(gs), Some(climb)) => format!(",{:.2},{:.2}", gs / KNOT, climb / FEET),
+        _ => String::new(),
+    };
     format!(
-        "{:.8},{:.8},{:.4},{:.4},{:.4},{:.4}\n",
+        "{:.8},{:.8},{:.4},{:.4},{:.4},{:.4}{speeds}\n",
         fix.lat,
         fix.lon,
         fix.alt_m / FEET,
@@ -73,6 +84,10 @@ mod tests {
         assert!((f.alt_m - 3048.0).abs() < 1e-9);
         assert_eq!((f.heading, f.pitch, f.roll), (270.0, -5.0, 10.0));
         assert!(parse(b"1,2,3,4,5,6\r\n").is_ok());
+        assert_eq!((f.ground_speed, f.climb), (None, None));
+        let f = parse(b"45.5,-22.25,10000.00,270.000,-5.000,10.000,100.00,-10.00\n").unwrap();
+        assert!((f.ground_speed.unwrap() - 51.444).abs() < 1e-3, "{f:?}");
+        assert!((f.climb.unwrap() + 3.048).abs() < 1e-9, "{f:?}");
     }
 
     #[test]
@@ -80,6 +95,10 @@ mod tests {
         for (bad, what) in [
             (&b"1,2,3,4,5"[..], "five fields"),
             (b"1,2,3,4,5,6,7\n", "seven fields"),
+            (b"1,2,3,4,5,6,7,8,9\n", "nine fields"),
+            (b"1,2,3,4,5,6,-5,0\n", "negative ground speed"),
+            (b"1,2,3,4,5,6,50,1e6\n", "climb"),
+            (b"1,2,3,4,5,6,nan,0\n", "NaN speed"),
             (b"1,2,x,4,5,6\n", "not a number"),
             (b"nan,2,3,4,5,6\n", "NaN"),
             (b"1,inf,3,4,5,6\n", "infinite"),

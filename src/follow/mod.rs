@@ -2,27 +2,34 @@
 //! `flight --follow`): X-Plane's data output ([`xplane`]) and FlightGear's generic protocol with
 //! the definition Stratus ships ([`flightgear`]).
 //!
-//! A [`Follower`] owns a non-blocking UDP socket. Each frame the caller drains it
+//! A [`Follower`] owns a UDP socket read by a thread of its own ([`receiver`]), which stamps
+//! each datagram with its arrival time. Each frame the caller drains what arrived
 //! ([`Follower::poll`]); every datagram is parsed and checked, a bad one is counted and
 //! dropped, and the last good one is kept with its arrival time. Between packets the pose is
-//! extrapolated along the aircraft's heading at the speed the last two packets imply (bounded,
-//! and for at most [`MAX_EXTRAPOLATION`]); after [`STALE_AFTER`] without a packet the status
-//! says for how long. Nothing the network sends can make this panic.
+//! extrapolated along the aircraft's heading at its ground speed and climb rate ([`motion`]:
+//! the simulator's own when its packets carry them, else measured over the last second of
+//! packets; bounded, and for at most [`MAX_EXTRAPOLATION`]); after [`STALE_AFTER`] without a
+//! packet the status says for how long. Nothing the network sends can make this panic.
 
 pub mod flightgear;
+pub mod motion;
+pub mod receiver;
 pub mod xplane;
 
 use std::collections::VecDeque;
-use std::io::ErrorKind;
 use std::net::UdpSocket;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
 
 use crate::render::camera::EARTH_R;
 use crate::render::Camera;
+use motion::{Track, Velocity};
+use receiver::Receiving;
 
 /// Metres per foot (both simulators send altitude in feet).
 pub const FEET: f64 = 0.3048;
+/// Metres per second per knot (both simulators send speeds in knots).
+pub const KNOT: f64 = 1852.0 / 3600.0;
 /// X-Plane's data output has no fixed destination port: the user types one in (Settings →
 /// Network, "Send network data output"; X-Plane itself listens on 49000 and sends from 49001,
 /// so 49003 is the customary free port for a receiver).
@@ -31,8 +38,8 @@ pub const XPLANE_PORT: u16 = 49003;
 pub const FLIGHTGEAR_PORT: u16 = 5505;
 /// Lowest and highest altitude accepted (m MSL): the Dead Sea shore to far above any airliner.
 pub const ALT_RANGE_M: (f64, f64) = (-500.0, 100_000.0);
-/// Fastest speed believed from two packets (m/s): above it the jump is a teleport (the user
-/// moved the aircraft), and the pose is held instead of flown there.
+/// Fastest ground speed believed (m/s): a jump between packets faster than this is a teleport
+/// (the user moved the aircraft), and the pose is held instead of flown there.
 pub const MAX_SPEED: f64 = 1_000.0;
 /// Fastest climb or descent believed (m/s).
 pub const MAX_CLIMB: f64 = 150.0;
@@ -63,6 +70,22 @@ impl Kind {
             Kind::XPlane => XPLANE_PORT,
             Kind::FlightGear => FLIGHTGEAR_PORT,
         }
+    }
+}
+
+impl Source {
+    /// How to make the simulator send here, in one clause for a waiting line.
+    pub fn setup_hint(&self) -> String {
+        let port = self.port;
+        let how = match self.kind {
+            Kind::XPlane => format!(
+                "in X-Plane's Data Output tick \"Network via UDP\" for rows 20, 17 and 3 and send them to this machine, port {port}"
+            ),
+            Kind::FlightGear => format!(
+                "copy docs/flightgear/stratus.xml to $FG_ROOT/Protocol/ and start fgfs with --generic=socket,out,30,THIS-MACHINE,{port},udp,stratus"
+            ),
+        };
+        format!("{how} (docs/fly.md, \"Following a simulator\")")
     }
 }
 
@@ -126,7 +149,7 @@ pub enum ParseError {
     NoNewline,
     #[error("not text")]
     NotText,
-    #[error("{0} fields, expected 6")]
+    #[error("{0} fields, expected 6 or 8")]
     Fields(usize),
     #[error("field {0} is not a number")]
     Number(usize),
@@ -146,6 +169,10 @@ pub struct Fix {
     pub pitch: f64,
     /// Degrees, right wing down positive.
     pub roll: f64,
+    /// Ground speed (m/s) the simulator sent with this fix, when its packet carries one.
+    pub ground_speed: Option<f64>,
+    /// Climb rate (m/s, up positive) the simulator sent, when its packet carries one.
+    pub climb: Option<f64>,
 }
 
 impl Fix {
@@ -182,6 +209,32 @@ impl Fix {
             heading: heading.rem_euclid(360.0),
             pitch,
             roll: wrap180(roll),
+            ground_speed: None,
+            climb: None,
+        })
+    }
+
+    /// This fix with the simulator's own ground speed and climb rate (m/s), or why they
+    /// cannot be: finite, ground speed within 0..[`MAX_SPEED`], climb within ±[`MAX_CLIMB`].
+    pub fn with_motion(
+        self,
+        ground_speed: Option<f64>,
+        climb: Option<f64>,
+    ) -> Result<Fix, ParseError> {
+        for (name, v, lo, hi) in [
+            ("ground speed", ground_speed, 0.0, MAX_SPEED),
+            ("climb rate", climb, -MAX_CLIMB, MAX_CLIMB),
+        ] {
+            if let Some(v) = v.filter(|v| !(*v >= lo && *v <= hi)) {
+                return Err(ParseError::Value(format!(
+                    "{name} {v} m/s is outside {lo}..{hi}"
+                )));
+            }
+        }
+        Ok(Fix {
+            ground_speed,
+            climb,
+            ..self
         })
     }
 
@@ -200,7 +253,7 @@ impl Fix {
     }
 
     /// This fix moved `d` metres along its heading over the sphere and `dz` metres up.
-    fn moved(&self, d: f64, dz: f64) -> Fix {
+    pub fn moved(&self, d: f64, dz: f64) -> Fix {
         let r = EARTH_R + self.alt_m;
         let h = self.heading.to_radians();
         let mut lat = self.lat + (d * h.cos() / r).to_degrees();
@@ -282,12 +335,11 @@ impl Status {
 /// A UDP listener that turns a simulator's packets into a camera pose.
 pub struct Follower {
     source: Source,
-    socket: UdpSocket,
-    buf: Vec<u8>,
+    receiving: Receiving,
     /// The last good fix and when it arrived.
     last: Option<(Fix, Instant)>,
-    /// Ground speed (m/s) and climb rate (m/s) from the last two fixes.
-    velocity: (f64, f64),
+    /// The recent fixes the speed comes from.
+    track: Track,
     arrivals: VecDeque<Instant>,
     received: u64,
     malformed: u64,
@@ -303,15 +355,12 @@ impl Follower {
             err,
         };
         let socket = UdpSocket::bind(("0.0.0.0", source.port)).map_err(err)?;
-        socket.set_nonblocking(true).map_err(err)?;
         let port = socket.local_addr().map_err(err)?.port();
         Ok(Follower {
             source: Source { port, ..source },
-            socket,
-            // The largest UDP payload: nothing is silently cut short.
-            buf: vec![0; 65_536],
+            receiving: Receiving::start(socket).map_err(err)?,
             last: None,
-            velocity: (0.0, 0.0),
+            track: Track::default(),
             arrivals: VecDeque::new(),
             received: 0,
             malformed: 0,
@@ -326,24 +375,22 @@ impl Follower {
         self.source.port
     }
 
-    /// Read every datagram waiting (at most a few thousand), as arrived at `now`.
+    /// Take every datagram the receiving thread has read (at most a few thousand), each at
+    /// the time it arrived; `now` ages the packet rate.
     pub fn poll(&mut self, now: Instant) {
         for _ in 0..MAX_PER_POLL {
-            let n = match self.socket.recv_from(&mut self.buf) {
-                Ok((n, _)) => n,
-                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
-                // ICMP "port unreachable" echoes and the like: nothing to read, try next frame.
-                Err(_) => break,
+            let Some(d) = self.receiving.next() else {
+                break;
             };
-            let packet = &self.buf[..n];
-            match self.parse(packet) {
-                Ok(fix) => self.accept(fix, now),
+            match self.parse(&d.bytes) {
+                Ok(fix) => self.accept(fix, d.at),
                 Err(e) => {
                     self.malformed += 1;
                     tracing::debug!("dropped a {} packet: {e}", self.source.kind.name());
                 }
             }
         }
+        self.trim(now);
     }
 
     /// Parse one datagram in this follower's format.
@@ -359,39 +406,33 @@ impl Follower {
         }
     }
 
-    fn accept(&mut self, fix: Fix, now: Instant) {
-        if let Some((prev, at)) = self.last {
-            let dt = now.duration_since(at).as_secs_f64();
-            // Packets drained in the same poll arrive together: no speed from those.
-            if dt >= 1e-3 {
-                let v = distance(&prev, &fix) / dt;
-                let climb = (fix.alt_m - prev.alt_m) / dt;
-                self.velocity = if v <= MAX_SPEED && climb.abs() <= MAX_CLIMB {
-                    (v, climb)
-                } else {
-                    (0.0, 0.0)
-                };
-            }
-        }
-        self.last = Some((fix, now));
+    fn accept(&mut self, fix: Fix, at: Instant) {
+        self.track.push(fix, at);
+        self.last = Some((fix, at));
         self.received += 1;
-        self.arrivals.push_back(now);
-        self.trim(now);
+        self.arrivals.push_back(at);
     }
 
     fn trim(&mut self, now: Instant) {
         while self
             .arrivals
             .front()
-            .is_some_and(|&t| now.duration_since(t) > Duration::from_secs(1))
+            .is_some_and(|&t| now.saturating_duration_since(t) > Duration::from_secs(1))
         {
             self.arrivals.pop_front();
         }
     }
 
-    /// Ground speed (m/s) the last two packets imply (0 when unknown or a teleport).
+    /// The aircraft's ground speed and climb rate: the simulator's own where its packets carry
+    /// them, else measured over the last second of packets; `None` while unknown (before
+    /// packets span a quarter of a second, and after a teleport).
+    pub fn velocity(&self) -> Option<Velocity> {
+        self.track.velocity()
+    }
+
+    /// Ground speed (m/s), 0 while unknown.
     pub fn speed(&self) -> f64 {
-        self.velocity.0
+        self.velocity().map_or(0.0, |v| v.ground)
     }
 
     /// The last fix as received, without extrapolation.
@@ -407,7 +448,7 @@ impl Follower {
             .saturating_duration_since(at)
             .min(MAX_EXTRAPOLATION)
             .as_secs_f64();
-        let (v, climb) = self.velocity;
+        let (v, climb) = self.velocity().map_or((0.0, 0.0), |v| (v.ground, v.climb));
         if v == 0.0 && climb == 0.0 {
             return Some(fix);
         }
@@ -473,7 +514,7 @@ mod tests {
         .unwrap();
         let t0 = Instant::now();
         let a = Fix::checked(0.0, 0.0, 1000.0, 90.0, 0.0, 0.0).unwrap();
-        // 100 m east in 0.5 s: 200 m/s.
+        // 100 m east in 0.5 s, measured from the arrival times: 200 m/s.
         let b = a.moved(100.0, 0.0);
         f.accept(a, t0);
         f.accept(b, t0 + Duration::from_millis(500));
