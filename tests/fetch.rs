@@ -84,8 +84,8 @@ struct Faults {
     huge_content_range: bool,
     /// Answer every request with a redirect here.
     redirect_to: Option<String>,
-    /// Wait this long before answering a range of a path containing this.
-    delay: Option<(String, Duration)>,
+    /// Wait this long before answering each of the next N ranges of a path containing this.
+    delay: Option<(String, Duration, u32)>,
 }
 
 #[derive(Debug, Clone)]
@@ -308,7 +308,13 @@ fn serve(
             );
             continue;
         }
-        let delay = f.delay.clone().filter(|(p, _)| path.contains(p.as_str()));
+        let delay = match &mut f.delay {
+            Some((p, wait, n)) if path.contains(p.as_str()) && *n > 0 => {
+                *n -= 1;
+                Some(*wait)
+            }
+            _ => None,
+        };
         if f.hang_after.is_some_and(|n| served >= n) {
             drop(f);
             record("hang");
@@ -325,7 +331,7 @@ fn serve(
         let stall_for = f.stall_for;
         let shift = usize::from(f.shift && b + 1 < bytes.len());
         drop(f);
-        if let Some((_, wait)) = delay {
+        if let Some(wait) = delay {
             std::thread::sleep(wait);
         }
         if short {
@@ -1039,7 +1045,8 @@ fn two_fetches_into_one_out_at_once_both_succeed() {
     let server = Server::start(
         &root,
         Faults {
-            delay: Some(("f006".into(), Duration::from_millis(1500))),
+            // The slow fetch's first 16 ranges (all it asks for at first) wait 3 s.
+            delay: Some(("f006".into(), Duration::from_secs(3), 16)),
             ..Faults::default()
         },
     );
@@ -1287,24 +1294,20 @@ fn lines_say_what_failed_and_hide_passwords() {
         assert!(!stderr(&o).contains("s3cret"));
     }
 
-    // The last message of a file runs to its end: its range is asked for open-ended. Cut
-    // f006 after its last RH message, so that it is the last.
+    // The last message of a file runs to its end: its range is asked for open-ended. A
+    // file of one RH message, so that range starts at byte 0.
     let file = root.join(SERIES).join("gfs.t18z.pgrb2.2p50.f006");
     let bytes = std::fs::read(&file).unwrap();
     let fields = grib::scan(&bytes).unwrap();
     let rh = fields
         .iter()
-        .rfind(|f| {
-            f.parameter() == (0, 1, 1)
-                && f.pressure_hpa()
-                    .is_some_and(|p| (100.0..=1000.0).contains(&p))
-        })
+        .find(|f| f.parameter() == (0, 1, 1) && f.pressure_hpa() == Some(500.0))
         .unwrap();
-    let cut = &bytes[..rh.offset + rh.length];
-    std::fs::write(&file, cut).unwrap();
+    let one = &bytes[rh.offset..rh.offset + rh.length];
+    std::fs::write(&file, one).unwrap();
     std::fs::write(
         idx_of(&root, "f006"),
-        idx::write(cut, &grib::scan(cut).unwrap()),
+        idx::write(one, &grib::scan(one).unwrap()),
     )
     .unwrap();
     let server = Server::start(
@@ -1319,7 +1322,11 @@ fn lines_say_what_failed_and_hide_passwords() {
         &out,
         &["--step", "6", "--fields", "r", "--retries", "0"],
     );
-    assert_refused(&o, &out, "-18446744073709551615/*\" does not answer bytes");
+    assert_refused(
+        &o,
+        &out,
+        "Content-Range \"bytes 0-18446744073709551615/*\" does not answer bytes 0-end",
+    );
 }
 
 /// Issue 28, 16: an interrupt before the first range removes the folders the run created
