@@ -45,7 +45,7 @@ pub struct Args {
     /// Folder for the step files (created if absent).
     #[arg(long)]
     pub out: PathBuf,
-    /// Folder for downloaded ranges, so a re-run fetches only what is missing [default: OUT/.stratus-cache].
+    /// Folder for downloaded ranges, so a re-run fetches only what is missing; locked while in use, never removed if it existed [default: OUT/.stratus-cache].
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// Ranges downloaded at once.

@@ -161,7 +161,7 @@ pub fn check_against_inventory(m: &IdxMessage, fields: &[MessageInfo]) -> Result
     Ok(())
 }
 
-/// Values a parameter can take: (discipline, category, number), NCEP name, least, most, unit.
+/// Values a parameter can take ([`Bound`]).
 /// Wide enough for any real atmosphere at any GFS level (the top is 0.01 hPa, ~80 km), narrow
 /// enough that a damaged data section shows. GFS's post-processor caps RH at 100 %: every RH
 /// field in data-samples (2.5° and 0.25°, five runs) peaks at 100.000003 % (packing), so the
@@ -169,28 +169,63 @@ pub fn check_against_inventory(m: &IdxMessage, fields: &[MessageInfo]) -> Result
 /// likewise. The extremes seen in data-samples are printed by the test below. Missing points
 /// (NaN from a bit-map) are not values. Other parameters are checked for finite values only
 /// (the decoder refuses infinities).
-pub const PLAUSIBLE: [((u8, u8, u8), &str, f64, f64, &str); 16] = [
-    ((0, 1, 1), "RH", 0.0, 101.0, "%"),
-    ((0, 6, 1), "TCDC", 0.0, 101.0, "%"),
-    ((0, 3, 5), "HGT", -2_000.0, 100_000.0, "gpm"),
-    ((0, 2, 2), "UGRD", -300.0, 300.0, "m/s"),
-    ((0, 2, 3), "VGRD", -300.0, 300.0, "m/s"),
-    ((0, 0, 0), "TMP", 100.0, 400.0, "K"),
-    ((0, 1, 0), "SPFH", -0.001, 0.1, "kg/kg"),
-    ((0, 2, 8), "VVEL", -200.0, 200.0, "Pa/s"),
-    ((0, 3, 0), "PRES", 0.0, 110_000.0, "Pa"),
-    ((0, 1, 22), "CLMR", -0.001, 0.1, "kg/kg"),
-    ((0, 1, 23), "ICMR", -0.001, 0.1, "kg/kg"),
-    ((0, 1, 24), "RWMR", -0.001, 0.1, "kg/kg"),
-    ((0, 1, 25), "SNMR", -0.001, 0.1, "kg/kg"),
-    ((0, 14, 192), "O3MR", -1e-5, 1e-3, "kg/kg"),
-    ((0, 2, 10), "ABSV", -0.1, 0.1, "1/s"),
-    ((2, 0, 0), "LAND", 0.0, 1.0, "(fraction)"),
+pub const PLAUSIBLE: [Bound; 16] = [
+    bound((0, 1, 1), "RH", 0.0, 101.0, "%"),
+    bound((0, 6, 1), "TCDC", 0.0, 101.0, "%"),
+    bound((0, 3, 5), "HGT", -2_000.0, 100_000.0, "gpm"),
+    bound((0, 2, 2), "UGRD", -300.0, 300.0, "m/s"),
+    bound((0, 2, 3), "VGRD", -300.0, 300.0, "m/s"),
+    bound((0, 0, 0), "TMP", 100.0, 400.0, "K"),
+    bound((0, 1, 0), "SPFH", -0.001, 0.1, "kg/kg"),
+    bound((0, 2, 8), "VVEL", -200.0, 200.0, "Pa/s"),
+    bound((0, 3, 0), "PRES", 0.0, 110_000.0, "Pa"),
+    bound((0, 1, 22), "CLMR", -0.001, 0.1, "kg/kg"),
+    bound((0, 1, 23), "ICMR", -0.001, 0.1, "kg/kg"),
+    bound((0, 1, 24), "RWMR", -0.001, 0.1, "kg/kg"),
+    bound((0, 1, 25), "SNMR", -0.001, 0.1, "kg/kg"),
+    bound((0, 14, 192), "O3MR", -1e-5, 1e-3, "kg/kg"),
+    bound((0, 2, 10), "ABSV", -0.1, 0.1, "1/s"),
+    bound((2, 0, 0), "LAND", 0.0, 1.0, "(fraction)"),
 ];
+
+/// A parameter's plausible values.
+#[derive(Debug, Clone, Copy)]
+pub struct Bound {
+    /// (discipline, category, number).
+    pub parameter: (u8, u8, u8),
+    /// NCEP's name.
+    pub name: &'static str,
+    pub least: f64,
+    pub most: f64,
+    pub unit: &'static str,
+}
+
+const fn bound(
+    parameter: (u8, u8, u8),
+    name: &'static str,
+    least: f64,
+    most: f64,
+    unit: &'static str,
+) -> Bound {
+    Bound {
+        parameter,
+        name,
+        least,
+        most,
+        unit,
+    }
+}
 
 /// Every value of a decoded field within its parameter's [`PLAUSIBLE`] range.
 pub fn plausible(info: &MessageInfo, values: &[f64]) -> Result<(), String> {
-    let Some(&(_, name, lo, hi, unit)) = PLAUSIBLE.iter().find(|p| p.0 == info.parameter()) else {
+    let Some(&Bound {
+        name,
+        least: lo,
+        most: hi,
+        unit,
+        ..
+    }) = PLAUSIBLE.iter().find(|p| p.parameter == info.parameter())
+    else {
         return Ok(());
     };
     let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -239,14 +274,14 @@ mod tests {
                     continue;
                 };
                 plausible(&info, &field.values).unwrap_or_else(|e| panic!("{f}: {e}"));
-                if let Some(p) = PLAUSIBLE.iter().find(|p| p.0 == info.parameter()) {
+                if let Some(p) = PLAUSIBLE.iter().find(|p| p.parameter == info.parameter()) {
                     let v = field.values.iter().filter(|v| !v.is_nan());
                     let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
                         (a.min(x), b.max(x))
                     });
-                    match extremes.iter_mut().find(|e| e.0 == p.1) {
+                    match extremes.iter_mut().find(|e| e.0 == p.name) {
                         Some(e) => *e = (e.0, e.1.min(lo), e.2.max(hi)),
-                        None => extremes.push((p.1, lo, hi)),
+                        None => extremes.push((p.name, lo, hi)),
                     }
                 }
             }

@@ -201,8 +201,8 @@ impl Client {
                 .map_err(|e| Failure::Transient(format!("connection lost: {e}")))?;
             if buf.len() as u64 > limit {
                 return Err(Failure::Permanent(format!(
-                    "larger than {} KiB, the most an inventory may be",
-                    limit >> 10
+                    "larger than {}, the most an inventory may be",
+                    crate::error::human_bytes(limit)
                 )));
             }
             Ok(buf)

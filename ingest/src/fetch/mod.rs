@@ -399,7 +399,13 @@ impl Fetcher {
                                 Some(BodyError::Fatal(served(chunk.range, Problem::NotListed(m))));
                             return Err(String::new());
                         }
-                        w.write(&buf[..n]).map_err(|e| e.to_string())?;
+                        if let Err(e) = w.write(&buf[..n]) {
+                            why = Some(BodyError::Fatal(FetchError::Cache {
+                                path: self.cache.path(&plan.cache_key, chunk.range),
+                                msg: format!("cannot write a cached range: {e}"),
+                            }));
+                            return Err(String::new());
+                        }
                         arrived += n as u64;
                     }
                     if arrived != len {
