@@ -1,9 +1,11 @@
 //! `stratus fetch` end to end through the binary, against a small HTTP/1.1 server on 127.0.0.1
-//! that serves the shared GFS files in NOMADS' layout with `.idx` inventories made by the
-//! ingest crate's generator, honours `Range`, and injects faults: a connection dropped
+//! that serves the GFS files in data-samples in NOMADS' layout with `.idx` inventories made by
+//! the ingest crate's generator, honours `Range`, and injects faults: a connection dropped
 //! mid-range, 503s, a server too slow for the timeout, a range answered with the wrong length,
-//! an inventory that does not match its file, a missing inventory, and a server that hangs so
-//! the fetch can be interrupted and resumed.
+//! an inventory that does not match its file, a missing inventory, a server that hangs so
+//! the fetch can be interrupted and resumed, and issue 28's: zeros instead of the file, bytes
+//! shifted by one under honest headers, 404s after a few ranges, a redirect to nowhere, a
+//! Content-Range ending at u64::MAX, ranges held back to race two fetches.
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
@@ -992,8 +994,9 @@ fn changed_cached_ranges_are_found_and_fetched_again() {
     assert!(String::from_utf8_lossy(&o.stdout).contains(" 0 from the cache"));
 }
 
-/// The offsets of the data sections (section 7) of every message in `bytes` that holds RH.
-fn rh_data_sections(bytes: &[u8]) -> Vec<std::ops::Range<usize>> {
+/// The bodies (after the 5-byte header) of section `num` of every message in `bytes` that
+/// holds RH.
+fn rh_sections(bytes: &[u8], num: u8) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     for f in grib::scan(bytes).unwrap() {
         if f.parameter() != (0, 1, 1) {
@@ -1002,7 +1005,7 @@ fn rh_data_sections(bytes: &[u8]) -> Vec<std::ops::Range<usize>> {
         let mut at = f.offset + 16;
         while at + 5 <= f.offset + f.length && &bytes[at..at + 4] != b"7777" {
             let len = u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
-            if bytes[at + 4] == 7 {
+            if bytes[at + 4] == num {
                 out.push(at + 5..at + len);
             }
             at += len;
@@ -1011,29 +1014,47 @@ fn rh_data_sections(bytes: &[u8]) -> Vec<std::ops::Range<usize>> {
     out
 }
 
-/// Issue 28, 13: messages whose data sections are damaged (headers intact, so the inventory
-/// and the validator agree) are refused, naming the message.
+/// Issue 28, 13: RH messages damaged with their headers intact (so the inventory and the
+/// validator agree) are refused, naming the message: data sections of all ones (which do not
+/// decode), and a reference value of 5000 in the data representation section (which decodes,
+/// to RH in the thousands).
 #[test]
 fn damaged_data_sections_are_refused() {
     let (d, root) = tree();
     let file = root.join(SERIES).join("gfs.t18z.pgrb2.2p50.f006");
-    let mut bytes = std::fs::read(&file).unwrap();
-    let sections = rh_data_sections(&bytes);
-    assert!(sections.len() > 10);
-    for s in sections {
-        bytes[s].fill(0xFF);
+    let real = std::fs::read(&file).unwrap();
+    let all_ones = |b: &mut Vec<u8>| {
+        for s in rh_sections(b, 7) {
+            b[s].fill(0xFF);
+        }
+    };
+    let reference_5000 = |b: &mut Vec<u8>| {
+        // Template 5.x: the reference value R, an IEEE float, is octets 12-15.
+        for s in rh_sections(b, 5) {
+            b[s.start + 6..s.start + 10].copy_from_slice(&5000f32.to_be_bytes());
+        }
+    };
+    let cases: [(&dyn Fn(&mut Vec<u8>), &str); 2] = [
+        (&all_ones, "data section does not decode"),
+        (&reference_5000, "outside 0..=101 %, what RH can be"),
+    ];
+    for (i, (damage, needle)) in cases.into_iter().enumerate() {
+        let mut bytes = real.clone();
+        damage(&mut bytes);
+        assert_ne!(bytes, real);
+        std::fs::write(&file, &bytes).unwrap();
+        std::fs::write(
+            idx_of(&root, "f006"),
+            idx::write(&bytes, &grib::scan(&bytes).unwrap()),
+        )
+        .unwrap();
+        let server = Server::start(&root, Faults::default());
+        let out = d.path().join(format!("out{i}"));
+        let o = fetch(&server, &out, &["--step", "6", "--fields", "r"]);
+        assert_refused(&o, &out, "the server sent a damaged message: message");
+        assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+        assert!(range_files(&out.join(".stratus-cache")).is_empty());
     }
-    std::fs::write(&file, &bytes).unwrap();
-    std::fs::write(
-        idx_of(&root, "f006"),
-        idx::write(&bytes, &grib::scan(&bytes).unwrap()),
-    )
-    .unwrap();
-    let server = Server::start(&root, Faults::default());
-    let out = d.path().join("out");
-    let o = fetch(&server, &out, &["--step", "6", "--fields", "r"]);
-    assert_refused(&o, &out, "the server sent a damaged message: message");
-    assert!(stderr(&o).contains("RH"), "{}", stderr(&o));
 }
 
 /// Issue 28, 4: two fetches into one --out at once both succeed; the second waits for the
