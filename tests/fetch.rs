@@ -1034,7 +1034,8 @@ fn damaged_data_sections_are_refused() {
             b[s.start + 6..s.start + 10].copy_from_slice(&5000f32.to_be_bytes());
         }
     };
-    let cases: [(&dyn Fn(&mut Vec<u8>), &str); 2] = [
+    type Damage<'a> = &'a dyn Fn(&mut Vec<u8>);
+    let cases: [(Damage, &str); 2] = [
         (&all_ones, "data section does not decode"),
         (&reference_5000, "outside 0..=101 %, what RH can be"),
     ];
