@@ -164,7 +164,7 @@ pub fn check_against_inventory(m: &IdxMessage, fields: &[MessageInfo]) -> Result
 /// Values a parameter can take ([`Bound`]).
 /// Wide enough for any real atmosphere at any GFS level (the top is 0.01 hPa, ~80 km), narrow
 /// enough that a damaged data section shows. GFS's post-processor caps RH at 100 %: every RH
-/// field in data-samples (2.5° and 0.25°, five runs) peaks at 100.000003 % (packing), so the
+/// field in seven data-samples files (2.5° and 0.25°) peaks at 100.000003 % (packing), so the
 /// bound is 101 %, a margin for packing only (a tampered range's 102.5 % is refused); TCDC
 /// likewise. The extremes seen in data-samples are printed by the test below. Missing points
 /// (NaN from a bit-map) are not values. Other parameters are checked for finite values only
