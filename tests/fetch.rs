@@ -1,9 +1,11 @@
 //! `stratus fetch` end to end through the binary, against a small HTTP/1.1 server on 127.0.0.1
-//! that serves the shared GFS files in NOMADS' layout with `.idx` inventories made by the
-//! ingest crate's generator, honours `Range`, and injects faults: a connection dropped
+//! that serves the GFS files in data-samples in NOMADS' layout with `.idx` inventories made by
+//! the ingest crate's generator, honours `Range`, and injects faults: a connection dropped
 //! mid-range, 503s, a server too slow for the timeout, a range answered with the wrong length,
-//! an inventory that does not match its file, a missing inventory, and a server that hangs so
-//! the fetch can be interrupted and resumed.
+//! an inventory that does not match its file, a missing inventory, a server that hangs so
+//! the fetch can be interrupted and resumed, and issue 28's: zeros instead of the file, bytes
+//! shifted by one under honest headers, 404s after a few ranges, a redirect to nowhere, a
+//! Content-Range ending at u64::MAX, ranges held back to race two fetches.
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
@@ -73,6 +75,19 @@ struct Faults {
     short_range: u32,
     /// After this many whole range answers, stall every further range request (until stop).
     hang_after: Option<usize>,
+    /// After this many whole range answers, answer every further range request 404.
+    fail_after: Option<usize>,
+    /// Send the bytes one after the range asked for, under honest headers.
+    shift: bool,
+    /// Answer every range with zeros (of a file this large), whatever the file holds.
+    zeros: Option<u64>,
+    /// Answer a range to the end of the file with `Content-Range: bytes A-18446744073709551615/*`
+    /// and no body.
+    huge_content_range: bool,
+    /// Answer every request with a redirect here.
+    redirect_to: Option<String>,
+    /// Wait this long before answering each of the next N ranges of a path containing this.
+    delay: Option<(String, Duration, u32)>,
 }
 
 #[derive(Debug, Clone)]
@@ -80,6 +95,8 @@ struct Logged {
     path: String,
     range: Option<String>,
     outcome: &'static str,
+    /// Body bytes the connection took.
+    sent: u64,
 }
 
 struct Server {
@@ -178,14 +195,53 @@ fn serve(
                 }
             }
         }
-        let record = |outcome: &'static str| {
+        let record_sent = |outcome: &'static str, sent: u64| {
             log.lock().unwrap().push(Logged {
                 path: path.clone(),
                 range: range.clone(),
                 outcome,
+                sent,
             })
         };
+        let record = |outcome: &'static str| record_sent(outcome, 0);
         let mut f = faults.lock().unwrap();
+        if let Some(to) = f.redirect_to.clone() {
+            drop(f);
+            record("302");
+            let _ = write!(
+                w,
+                "HTTP/1.1 302 Found\r\nLocation: {to}\r\nContent-Length: 0\r\n\r\n"
+            );
+            continue;
+        }
+        if let (Some(total), Some(spec)) = (
+            f.zeros,
+            range.as_deref().and_then(|r| r.strip_prefix("bytes=")),
+        ) {
+            drop(f);
+            let (a, b) = spec.split_once('-').unwrap();
+            let a: u64 = a.parse().unwrap();
+            let b: u64 = b.parse().unwrap_or(total - 1);
+            let _ = write!(
+                w,
+                "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes {a}-{b}/{total}\r\nContent-Length: {}\r\n\r\n",
+                b - a + 1
+            );
+            let zeros = vec![0u8; 64 * 1024];
+            let (mut left, mut sent) = (b - a + 1, 0);
+            while left > 0 {
+                let n = left.min(zeros.len() as u64);
+                if w.write_all(&zeros[..n as usize]).is_err() {
+                    break;
+                }
+                (left, sent) = (left - n, sent + n);
+            }
+            record_sent(if left == 0 { "206" } else { "cut" }, sent);
+            if left > 0 {
+                return;
+            }
+            continue;
+        }
         if take(&mut f.status_503) {
             drop(f);
             record("503");
@@ -239,6 +295,28 @@ fn serve(
             .iter()
             .filter(|l| l.outcome == "206")
             .count();
+        if f.fail_after.is_some_and(|n| served >= n) {
+            drop(f);
+            record("404");
+            let _ = w.write_all(b"HTTP/1.1 404 Not Found\r\nContent-Length: 0\r\n\r\n");
+            continue;
+        }
+        if f.huge_content_range && spec.ends_with('-') {
+            drop(f);
+            record("huge");
+            let _ = write!(
+                w,
+                "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes {a}-18446744073709551615/*\r\nContent-Length: 0\r\n\r\n"
+            );
+            continue;
+        }
+        let delay = match &mut f.delay {
+            Some((p, wait, n)) if path.contains(p.as_str()) && *n > 0 => {
+                *n -= 1;
+                Some(*wait)
+            }
+            _ => None,
+        };
         if f.hang_after.is_some_and(|n| served >= n) {
             drop(f);
             record("hang");
@@ -253,11 +331,15 @@ fn serve(
             take(&mut f.short_range),
         );
         let stall_for = f.stall_for;
+        let shift = usize::from(f.shift && b + 1 < bytes.len());
         drop(f);
+        if let Some(wait) = delay {
+            std::thread::sleep(wait);
+        }
         if short {
             b -= 10;
         }
-        let body = &bytes[a..=b];
+        let body = &bytes[a + shift..=b + shift];
         let head = format!(
             "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes {a}-{b}/{}\r\nContent-Length: {}\r\n\r\n",
             bytes.len(),
@@ -276,7 +358,7 @@ fn serve(
             return;
         }
         let _ = w.write_all(body);
-        record(if short { "short" } else { "206" });
+        record_sent(if short { "short" } else { "206" }, body.len() as u64);
     }
 }
 
@@ -579,7 +661,7 @@ fn what_cannot_succeed_exits_2_with_one_line_and_no_file() {
     .unwrap();
     let out = d.path().join("out-mismatch");
     let o = fetch(&server, &out, &["--step", "0"]);
-    assert_refused(&o, &out, "does not match the file");
+    assert_refused(&o, &out, "the server's bytes do not match the inventory");
     let shifted: String = f000_idx
         .lines()
         .map(|l| {
@@ -590,11 +672,7 @@ fn what_cannot_succeed_exits_2_with_one_line_and_no_file() {
         .collect();
     std::fs::write(dir.join("gfs.t18z.pgrb2.2p50.f000.idx"), shifted).unwrap();
     let o = fetch(&server, &out, &["--step", "0"]);
-    assert_refused(
-        &o,
-        &out,
-        "does not match the file: no GRIB message starts at byte",
-    );
+    assert_refused(&o, &out, "no GRIB message starts at byte");
     // A field the run does not have.
     let o = fetch(
         &server,
@@ -688,4 +766,650 @@ fn an_interrupted_fetch_resumes_with_only_what_is_missing() {
     want_all.sort();
     assert_eq!(all, want_all);
     assert!(String::from_utf8_lossy(&o.stdout).contains("0 from the cache"));
+}
+
+fn idx_of(root: &Path, step: &str) -> PathBuf {
+    root.join(SERIES)
+        .join(format!("gfs.t18z.pgrb2.2p50.{step}.idx"))
+}
+
+/// Range requests the server saw (whatever it answered).
+fn range_requests(server: &Server) -> usize {
+    server.log().iter().filter(|l| l.range.is_some()).count()
+}
+
+/// The cached ranges in `dir`.
+fn range_files(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir).map_or_else(
+        |_| Vec::new(),
+        |d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|x| x == "range"))
+                .collect()
+        },
+    )
+}
+
+/// Wait up to `secs` for `child`; kill it and fail if it runs on.
+fn wait_for(child: &mut std::process::Child, secs: u64) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        if t0.elapsed() > Duration::from_secs(secs) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("still running after {secs} s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Issue 28, 1 and 2: inventories no GFS file can have are refused, naming the inventory,
+/// before a single range is asked for: messages 600 MB apart (the server would send zeros),
+/// 20 000 lines a byte apart, a line repeated, more lines than any inventory, a pick larger
+/// than a GFS step.
+#[test]
+fn hostile_inventories_are_refused_before_any_range() {
+    let (d, root) = tree();
+    let idx = idx_of(&root, "f006");
+    let real = std::fs::read_to_string(&idx).unwrap();
+    let line = |n: usize, off: u64, name: &str, level: &str| {
+        format!("{n}:{off}:d=2015091218:{name}:{level}:6 hour fcst:\n")
+    };
+    let apart_600mb: String = (0..4)
+        .map(|i| {
+            line(
+                i + 1,
+                i as u64 * 600_000_000,
+                "RH",
+                &format!("{} mb", 1000 - 100 * i),
+            )
+        })
+        .collect();
+    let one_byte_apart: String = (0..20_000)
+        .map(|i| {
+            line(
+                i + 1,
+                i as u64,
+                if i % 2 == 0 { "RH" } else { "TMP" },
+                "500 mb",
+            )
+        })
+        .collect();
+    let mut repeated: Vec<&str> = real.lines().collect();
+    repeated.insert(5, repeated[4]);
+    let repeated = repeated.join("\n") + "\n";
+    let too_many: String = (0..10_001)
+        .map(|i| line(i + 1, i as u64 * 100, "TMP", "500 mb"))
+        .collect();
+    // 46 RH levels 30 MB apart: each message within bounds, the step 1.4 GB.
+    let too_big: String = (0..46)
+        .map(|i| {
+            line(
+                i + 1,
+                i as u64 * 30_000_000,
+                "RH",
+                &format!("{} mb", 1000 - 20 * i),
+            )
+        })
+        .collect();
+    let cases = [
+        (apart_600mb, "more than a GFS message can be"),
+        (one_byte_apart, "a GRIB2 message is at least 86"),
+        (repeated, "line 6: repeats line 5"),
+        (too_many, "more than 10000 lines"),
+        (too_big, "more than a GFS step can be"),
+    ];
+    for (i, (text, needle)) in cases.into_iter().enumerate() {
+        std::fs::write(&idx, text).unwrap();
+        let server = Server::start(
+            &root,
+            Faults {
+                zeros: Some(100_000_000_000),
+                ..Faults::default()
+            },
+        );
+        let out = d.path().join(format!("out{i}"));
+        let o = fetch(&server, &out, &["--step", "6", "--levels", "all"]);
+        assert_refused(&o, &out, needle);
+        assert!(
+            stderr(&o).contains("f006.idx: bad inventory"),
+            "{}",
+            stderr(&o)
+        );
+        assert_eq!(range_requests(&server), 0, "{needle}: ranges asked for");
+        assert!(range_files(&out.join(".stratus-cache")).is_empty());
+    }
+}
+
+/// Issue 28, 1: a server that sends zeros where the inventory places messages (each within
+/// the bounds) is refused as the first bytes arrive, not after it sent the ranges.
+#[test]
+fn bytes_that_are_not_the_message_are_refused_as_they_arrive() {
+    let (d, root) = tree();
+    let apart: String = (0..3)
+        .map(|i| {
+            format!(
+                "{}:{}:d=2015091218:RH:{} mb:6 hour fcst:\n",
+                i + 1,
+                i * 30_000_000,
+                1000 - 100 * i
+            )
+        })
+        .collect();
+    std::fs::write(idx_of(&root, "f006"), apart).unwrap();
+    let server = Server::start(
+        &root,
+        Faults {
+            zeros: Some(90_000_000),
+            ..Faults::default()
+        },
+    );
+    let out = d.path().join("out");
+    let o = fetch(&server, &out, &["--step", "6", "--fields", "r"]);
+    assert_refused(&o, &out, "no GRIB message starts at byte");
+    assert!(
+        stderr(&o).contains("the server's bytes do not match the inventory"),
+        "{}",
+        stderr(&o)
+    );
+    let log = server.log();
+    let ranges: Vec<&Logged> = log.iter().filter(|l| l.range.is_some()).collect();
+    assert!(!ranges.is_empty());
+    for l in ranges {
+        assert!(
+            l.sent < 15_000_000,
+            "{l:?}: the server sent most of the range"
+        );
+    }
+    assert!(range_files(&out.join(".stratus-cache")).is_empty());
+}
+
+/// Issue 28, 3: a server that shifts every range by a byte under honest headers leaves
+/// nothing in the cache, the message says the server's bytes are wrong, and one run against
+/// an honest server then succeeds.
+#[test]
+fn a_lying_server_leaves_nothing_cached_and_one_honest_run_recovers() {
+    let (d, root) = tree();
+    let out = d.path().join("out");
+    let liar = Server::start(
+        &root,
+        Faults {
+            shift: true,
+            ..Faults::default()
+        },
+    );
+    let o = fetch(&liar, &out, &["--step", "6", "--parallel", "4"]);
+    assert_refused(&o, &out, "the server's bytes do not match the inventory");
+    assert!(
+        range_files(&out.join(".stratus-cache")).is_empty(),
+        "bad ranges cached"
+    );
+    drop(liar);
+    let server = Server::start(&root, Faults::default());
+    let o = fetch(&server, &out, &["--step", "6"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let want = expected_default(&sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
+    assert_eq!(std::fs::read(out_file(&out, "f006")).unwrap(), want);
+}
+
+/// Issue 28, 3 and 13: cached ranges changed on disk are all found on the next run, dropped
+/// and downloaded again in that one run; the file is right.
+#[test]
+fn changed_cached_ranges_are_found_and_fetched_again() {
+    let (d, root) = tree();
+    let out = d.path().join("out");
+    let server = Server::start(
+        &root,
+        Faults {
+            fail_after: Some(3),
+            ..Faults::default()
+        },
+    );
+    let o = fetch(&server, &out, &["--step", "6", "--parallel", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let cached = range_files(&out.join(".stratus-cache"));
+    assert_eq!(cached.len(), 3, "{cached:?}");
+    for p in &cached {
+        let mut b = std::fs::read(p).unwrap();
+        let mid = b.len() / 2;
+        b[mid] ^= 0x40;
+        std::fs::write(p, b).unwrap();
+    }
+    drop(server);
+    let server = Server::start(&root, Faults::default());
+    let o = fetch(&server, &out, &["--step", "6"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let want = expected_default(&sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
+    assert_eq!(std::fs::read(out_file(&out, "f006")).unwrap(), want);
+    let err = stderr(&o);
+    assert_eq!(
+        err.matches("dropped that cached range").count(),
+        3,
+        "each named: {err}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains(" 0 from the cache"));
+}
+
+/// The bodies (after the 5-byte header) of section `num` of every message in `bytes` that
+/// holds RH.
+fn rh_sections(bytes: &[u8], num: u8) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    for f in grib::scan(bytes).unwrap() {
+        if f.parameter() != (0, 1, 1) {
+            continue;
+        }
+        let mut at = f.offset + 16;
+        while at + 5 <= f.offset + f.length && &bytes[at..at + 4] != b"7777" {
+            let len = u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+            if bytes[at + 4] == num {
+                out.push(at + 5..at + len);
+            }
+            at += len;
+        }
+    }
+    out
+}
+
+/// Issue 28, 13: RH messages damaged with their headers intact (so the inventory and the
+/// validator agree) are refused, naming the message: data sections of all ones (which do not
+/// decode), and a reference value of 5000 in the data representation section (which decodes,
+/// to RH in the thousands).
+#[test]
+fn damaged_data_sections_are_refused() {
+    let (d, root) = tree();
+    let file = root.join(SERIES).join("gfs.t18z.pgrb2.2p50.f006");
+    let real = std::fs::read(&file).unwrap();
+    let all_ones = |b: &mut Vec<u8>| {
+        for s in rh_sections(b, 7) {
+            b[s].fill(0xFF);
+        }
+    };
+    let reference_5000 = |b: &mut Vec<u8>| {
+        // Template 5.x: the reference value R, an IEEE float, is octets 12-15.
+        for s in rh_sections(b, 5) {
+            b[s.start + 6..s.start + 10].copy_from_slice(&5000f32.to_be_bytes());
+        }
+    };
+    type Damage<'a> = &'a dyn Fn(&mut Vec<u8>);
+    let cases: [(Damage, &str); 2] = [
+        (&all_ones, "data section does not decode"),
+        (&reference_5000, "outside 0..=101 %, what RH can be"),
+    ];
+    for (i, (damage, needle)) in cases.into_iter().enumerate() {
+        let mut bytes = real.clone();
+        damage(&mut bytes);
+        assert_ne!(bytes, real);
+        std::fs::write(&file, &bytes).unwrap();
+        std::fs::write(
+            idx_of(&root, "f006"),
+            idx::write(&bytes, &grib::scan(&bytes).unwrap()),
+        )
+        .unwrap();
+        let server = Server::start(&root, Faults::default());
+        let out = d.path().join(format!("out{i}"));
+        let o = fetch(&server, &out, &["--step", "6", "--fields", "r"]);
+        assert_refused(&o, &out, "the server sent a damaged message: message");
+        assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+        assert!(range_files(&out.join(".stratus-cache")).is_empty());
+    }
+}
+
+/// Issue 28, 4: two fetches into one --out at once both succeed; the second waits for the
+/// first's lock on the cache, and neither removes what the other uses.
+#[test]
+fn two_fetches_into_one_out_at_once_both_succeed() {
+    let (d, root) = tree();
+    let out = d.path().join("out");
+    let server = Server::start(
+        &root,
+        Faults {
+            // The slow fetch's first 16 ranges (all it asks for at first) wait 3 s.
+            delay: Some(("f006".into(), Duration::from_secs(3), 16)),
+            ..Faults::default()
+        },
+    );
+    let spawn = |step: &str, parallel: &str| {
+        let mut a: Vec<&str> = vec!["fetch"];
+        a.extend_from_slice(&RUN);
+        a.extend_from_slice(&["--step", step, "--resolution", "2p50", "--source"]);
+        Command::new(env!("CARGO_BIN_EXE_stratus"))
+            .args(a)
+            .arg(&server.base)
+            .arg("--out")
+            .arg(&out)
+            .args([
+                "--timeout",
+                "10",
+                "--backoff-ms",
+                "20",
+                "--parallel",
+                parallel,
+            ])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let slow = spawn("6", "16");
+    let t0 = Instant::now();
+    while !server.log().iter().any(|l| l.path.contains("f006.idx")) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "the first never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // The slow one is waiting for its first range (its cache folder empty) when the fast one
+    // starts.
+    std::thread::sleep(Duration::from_millis(300));
+    let fast = spawn("0", "4");
+    let (fast, slow) = (
+        fast.wait_with_output().unwrap(),
+        slow.wait_with_output().unwrap(),
+    );
+    assert!(slow.status.success(), "slow: {}", stderr(&slow));
+    assert!(fast.status.success(), "fast: {}", stderr(&fast));
+    assert!(
+        stderr(&fast).contains("waiting for another stratus fetch"),
+        "{}",
+        stderr(&fast)
+    );
+    for s in ["f000", "f006"] {
+        let want = expected_default(&sample(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{s}")));
+        assert_eq!(std::fs::read(out_file(&out, s)).unwrap(), want, "{s}");
+    }
+    assert!(!out.join(".stratus-cache").exists());
+}
+
+/// Issue 28, 9: a --cache folder that existed (empty) is kept after a success; one the run
+/// created is removed when empty, with the parents it created.
+#[test]
+fn a_cache_folder_that_existed_is_kept() {
+    let (d, root) = tree();
+    let server = Server::start(&root, Faults::default());
+    let mine = d.path().join("mycache");
+    std::fs::create_dir(&mine).unwrap();
+    let out = d.path().join("out");
+    let o = fetch(
+        &server,
+        &out,
+        &["--step", "6", "--cache", mine.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(mine.is_dir(), "the user's cache folder was removed");
+    let new = d.path().join("new").join("cache");
+    let o = fetch(
+        &server,
+        &out,
+        &["--step", "0", "--cache", new.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!d.path().join("new").exists());
+}
+
+/// Issue 28, 10: a step needs its size once on disk (the file is made from the cache, each
+/// range removed as it is copied), and a file system without room for it is refused before
+/// any range is downloaded, with one line saying what is needed and what is free. On a tmpfs
+/// of a chosen size, mounted in a user namespace (`unshare -rm`).
+#[test]
+fn a_step_needs_its_size_once_and_a_full_disk_is_refused_at_once() {
+    let probe = Command::new("unshare").args(["-rm", "true"]).status();
+    if !probe.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: no user namespaces here (unshare -rm) to mount a small tmpfs");
+        return;
+    }
+    let (d, root) = tree();
+    let want = expected_default(&sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"));
+    let step = want.len() as u64;
+    let run = |kib: u64, tag: &str| -> (Output, Server) {
+        let server = Server::start(&root, Faults::default());
+        let mnt = d.path().join(format!("mnt-{tag}"));
+        let keep = d.path().join(format!("kept-{tag}"));
+        std::fs::create_dir(&mnt).unwrap();
+        let script = format!(
+            "mount -t tmpfs -o size={kib}k tmpfs \"$1\" && \"$2\" fetch {} --step 6 --resolution 2p50 \
+             --source \"$3\" --out \"$1/out\" --timeout 5 --backoff-ms 20; rc=$?; \
+             cp \"$1/out/gfs.20150912.t18z.pgrb2.2p50.f006.grib2\" \"$4\" 2>/dev/null; exit $rc",
+            RUN.join(" ")
+        );
+        let o = Command::new("unshare")
+            .args(["-rm", "sh", "-c", &script, "sh"])
+            .arg(&mnt)
+            .arg(env!("CARGO_BIN_EXE_stratus"))
+            .arg(&server.base)
+            .arg(&keep)
+            .output()
+            .unwrap();
+        (o, server)
+    };
+    // Room for 1.6 times the step: enough once (with 8 KiB a range file for its last block
+    // and trailer), not twice.
+    let (o, _s) = run(step * 8 / 5 / 1024, "fits");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.path().join("kept-fits")).unwrap(), want);
+    // Room for half the step: refused before any range.
+    let (o, server) = run(step / 2 / 1024, "full");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("not enough free space for gfs.20150912.t18z.pgrb2.2p50.f006.grib2")
+            && err.contains("available"),
+        "{err}"
+    );
+    assert_eq!(range_requests(&server), 0);
+}
+
+/// Issue 28, 14: a FIFO where a cached range should be is refused at once, not waited on.
+#[test]
+fn a_fifo_in_the_cache_is_refused_not_waited_on() {
+    let (d, root) = tree();
+    let out = d.path().join("out");
+    let server = Server::start(
+        &root,
+        Faults {
+            fail_after: Some(1),
+            ..Faults::default()
+        },
+    );
+    let o = fetch(&server, &out, &["--step", "6", "--parallel", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let cached = range_files(&out.join(".stratus-cache"));
+    assert_eq!(cached.len(), 1);
+    std::fs::remove_file(&cached[0]).unwrap();
+    assert!(Command::new("mkfifo")
+        .arg(&cached[0])
+        .status()
+        .unwrap()
+        .success());
+    drop(server);
+    let server = Server::start(&root, Faults::default());
+    let mut a = vec!["fetch".to_string()];
+    a.extend(RUN.iter().map(|s| s.to_string()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(a)
+        .args([
+            "--step",
+            "6",
+            "--resolution",
+            "2p50",
+            "--source",
+            &server.base,
+        ])
+        .arg("--out")
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let status = wait_for(&mut child, 20);
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("a cached range is a FIFO (named pipe), not a regular file"),
+        "{err}"
+    );
+}
+
+/// Issue 28, 15: a failed redirect names the URL that failed; a password in --source is never
+/// printed (errors and logs); a source without a host is refused; a Content-Range whose end
+/// is u64::MAX does not wrap to an empty range.
+#[test]
+fn lines_say_what_failed_and_hide_passwords() {
+    let (d, root) = tree();
+    let out = d.path().join("out");
+    let server = Server::start(
+        &root,
+        Faults {
+            redirect_to: Some("http://127.0.0.1:1/elsewhere/moved.idx".into()),
+            ..Faults::default()
+        },
+    );
+    let o = fetch(&server, &out, &["--step", "6", "--retries", "0"]);
+    assert_refused(
+        &o,
+        &out,
+        "redirected to http://127.0.0.1:1/elsewhere/moved.idx",
+    );
+
+    let server = Server::start(
+        &root,
+        Faults {
+            status_503: 2,
+            ..Faults::default()
+        },
+    );
+    let secret = server.base.replace("http://", "http://fred:s3cret@");
+    let mut a = vec!["fetch"];
+    a.extend_from_slice(&RUN);
+    a.extend_from_slice(&["--step", "12", "--resolution", "2p50", "--source", &secret]);
+    a.extend_from_slice(&["--out", out.to_str().unwrap(), "--backoff-ms", "20"]);
+    let o = Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(&a)
+        .env("RUST_LOG", "info")
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("try 1 of"), "the retries are logged: {err}");
+    assert!(!err.contains("s3cret"), "{err}");
+    assert!(err.contains("fred:***@127.0.0.1"), "{err}");
+
+    for source in ["http://", "https:///pub/", "http://fred:s3cret@/pub/"] {
+        let o = stratus(&[
+            "fetch",
+            "--date",
+            "2015-09-12",
+            "--cycle",
+            "18",
+            "--step",
+            "6",
+            "--source",
+            source,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_refused(&o, &out, "names no host");
+        assert!(!stderr(&o).contains("s3cret"));
+    }
+
+    // The last message of a file runs to its end: its range is asked for open-ended. A
+    // file of one RH message, so that range starts at byte 0.
+    let file = root.join(SERIES).join("gfs.t18z.pgrb2.2p50.f006");
+    let bytes = std::fs::read(&file).unwrap();
+    let fields = grib::scan(&bytes).unwrap();
+    let rh = fields
+        .iter()
+        .find(|f| f.parameter() == (0, 1, 1) && f.pressure_hpa() == Some(500.0))
+        .unwrap();
+    let one = &bytes[rh.offset..rh.offset + rh.length];
+    std::fs::write(&file, one).unwrap();
+    std::fs::write(
+        idx_of(&root, "f006"),
+        idx::write(one, &grib::scan(one).unwrap()),
+    )
+    .unwrap();
+    let server = Server::start(
+        &root,
+        Faults {
+            huge_content_range: true,
+            ..Faults::default()
+        },
+    );
+    let o = fetch(
+        &server,
+        &out,
+        &["--step", "6", "--fields", "r", "--retries", "0"],
+    );
+    assert_refused(
+        &o,
+        &out,
+        "Content-Range \"bytes 0-18446744073709551615/*\" does not answer bytes 0-end",
+    );
+}
+
+/// Issue 28, 16: an interrupt before the first range removes the folders the run created
+/// (OUT and its cache), and keeps an OUT that existed.
+#[test]
+fn an_interrupt_before_the_first_range_removes_what_the_run_created() {
+    let (d, root) = tree();
+    for existed in [false, true] {
+        let server = Server::start(
+            &root,
+            Faults {
+                hang_after: Some(0),
+                ..Faults::default()
+            },
+        );
+        let top = d.path().join(format!("new-{existed}"));
+        let out = top.join("out");
+        if existed {
+            std::fs::create_dir_all(&out).unwrap();
+        }
+        let mut a = vec!["fetch".to_string()];
+        a.extend(RUN.iter().map(|s| s.to_string()));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_stratus"))
+            .args(a)
+            .args([
+                "--step",
+                "6",
+                "--resolution",
+                "2p50",
+                "--source",
+                &server.base,
+            ])
+            .arg("--out")
+            .arg(&out)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while !server.log().iter().any(|l| l.outcome == "hang") {
+            assert!(
+                t0.elapsed() < Duration::from_secs(20),
+                "never reached a range"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let kill = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        assert_eq!(wait_for(&mut child, 20).code(), Some(130));
+        if existed {
+            let left: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
+            assert!(left.is_empty(), "{left:?}");
+        } else {
+            assert!(
+                !top.exists(),
+                "left {:?}",
+                std::fs::read_dir(&top).ok().map(|d| d.count())
+            );
+        }
+    }
 }

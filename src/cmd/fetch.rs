@@ -3,6 +3,7 @@
 //! into one validated file per step (docs/fetch.md). The work is the ingest library's
 //! [`stratus_ingest::fetch`]; this is the command line and the progress bar.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
@@ -44,7 +45,7 @@ pub struct Args {
     /// Folder for the step files (created if absent).
     #[arg(long)]
     pub out: PathBuf,
-    /// Folder for downloaded ranges, so a re-run fetches only what is missing [default: OUT/.stratus-cache].
+    /// Folder for downloaded ranges, so a re-run fetches only what is missing; locked while in use, never removed if it existed [default: OUT/.stratus-cache].
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// Ranges downloaded at once.
@@ -132,35 +133,62 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.out.exists() && !args.out.is_dir() {
         anyhow::bail!("{}: --out must be a folder", shown(&args.out));
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the folder", shown(&args.out)))?;
-    let cache_dir = args
-        .cache
-        .clone()
-        .unwrap_or_else(|| default_cache_dir(&args.out));
-    let fetcher = Fetcher {
-        client: Client::new(Policy {
-            retries: args.retries,
-            backoff: Duration::from_millis(args.backoff_ms),
-            timeout: Duration::from_secs_f64(args.timeout),
-        }),
-        cache: Cache::open(&cache_dir)?,
-        run: Run {
-            base,
-            date,
-            cycle: args.cycle,
-            resolution: args.resolution.clone(),
-        },
-        fields,
-        levels,
-        out_dir: args.out.clone(),
-        parallel: args.parallel,
+    // Folders this run creates are removed again when empty: on an error here, on a signal
+    // by the handler (cleanup), never one that existed before.
+    let created_out = super::flight::create_folder(&args.out)?;
+    let (cache_dir, ours) = match &args.cache {
+        Some(c) => (c.clone(), false),
+        None => (default_cache_dir(&args.out), true),
     };
-    let result = fetch_steps(&fetcher, &steps);
-    // Whole ranges stay for the next run; an empty cache folder does not.
-    fetcher.cache.remove_if_empty();
+    let result = (|| {
+        let created_cache = super::flight::create_folder(&cache_dir)?;
+        let cache = Cache::open(&cache_dir, &|| {
+            let _ = writeln!(
+                std::io::stderr().lock(),
+                "waiting for another stratus fetch that is using the cache {}",
+                shown(&cache_dir)
+            );
+        })?;
+        let fetcher = Fetcher {
+            client: Client::new(Policy {
+                retries: args.retries,
+                backoff: Duration::from_millis(args.backoff_ms),
+                timeout: Duration::from_secs_f64(args.timeout),
+            }),
+            cache,
+            run: Run {
+                base,
+                date,
+                cycle: args.cycle,
+                resolution: args.resolution.clone(),
+            },
+            fields,
+            levels,
+            out_dir: args.out.clone(),
+            parallel: args.parallel,
+        };
+        let result = fetch_steps(&fetcher, &steps);
+        // Whole ranges stay for the next run. An empty cache folder goes if it is ours (the
+        // default) or this run made it, while the lock is held; a --cache folder that was
+        // there before stays.
+        if ours {
+            fetcher.cache.remove_if_empty();
+        }
+        remove_if_empty(&created_cache);
+        result
+    })();
+    if result.is_err() {
+        remove_if_empty(&created_out);
+    }
     result?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Remove `dirs` (outermost first, as created) that are empty, innermost first.
+fn remove_if_empty(dirs: &[PathBuf]) {
+    for d in dirs.iter().rev() {
+        let _ = std::fs::remove_dir(d);
+    }
 }
 
 fn fetch_steps(fetcher: &Fetcher, steps: &[u32]) -> anyhow::Result<()> {

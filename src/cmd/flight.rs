@@ -256,7 +256,7 @@ fn free_bytes(path: &Path) -> Option<u64> {
 
 /// Create `out` and any missing parents; returns the folders created, outermost first, each
 /// removed on a signal if still empty.
-fn create_folder(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub(crate) fn create_folder(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let mut missing: Vec<PathBuf> = out
         .ancestors()
         .filter(|p| !p.as_os_str().is_empty())

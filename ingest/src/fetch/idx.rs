@@ -11,6 +11,7 @@
 use std::fmt::Write as _;
 
 use crate::grib::{MessageInfo, SurfaceType, TimeUnit};
+use crate::input::MAX_GRIB_BYTES;
 
 /// One line of an inventory.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,31 +38,109 @@ pub struct IdxMessage {
     pub end: Option<u64>,
 }
 
-/// Parse an inventory. Lines must have at least the six fields, offsets must not decrease, and
-/// blank lines are skipped; anything else is an error naming the line (1-based).
+/// Largest inventory read: 1 MiB. A 0.25° step's is about 70 KB (some 750 lines).
+pub const MAX_IDX_BYTES: u64 = 1 << 20;
+
+/// Most lines an inventory may have: 10 000, over ten times a 0.25° step's.
+pub const MAX_IDX_LINES: usize = 10_000;
+
+/// Fewest bytes a GRIB2 message can be: the fixed parts of its mandatory sections — the
+/// indicator (16), identification (21), grid (14), product (9), data representation (11),
+/// bit-map (6) and data (5) sections and the end marker (4). Offsets closer than this cannot
+/// be two messages.
+pub const MIN_MESSAGE_BYTES: u64 = 86;
+
+/// Most bytes one message may be: 32 MiB. A GFS 0.25° field is 1 038 240 points, at most
+/// 4.2 MB even packed at 32 bits a value (GFS packs them in 1–2 MB); offsets farther apart
+/// than this are not a GFS message.
+pub const MAX_MESSAGE_BYTES: u64 = 32 << 20;
+
+/// `N` or `N.K` (K ≥ 1, the field of a multi-field message).
+fn message_number(s: &str) -> Option<(u64, u64)> {
+    let (n, k) = match s.split_once('.') {
+        Some((n, k)) => (n, k.parse().ok()?),
+        None => (s, 1),
+    };
+    let n: u64 = n.parse().ok()?;
+    (n >= 1 && k >= 1).then_some((n, k))
+}
+
+/// Parse an inventory. Each line must have at least the six fields; blank lines are skipped.
+/// What one file's inventory cannot be is refused, naming the line (1-based): more than
+/// [`MAX_IDX_BYTES`] or [`MAX_IDX_LINES`]; offsets that go backwards; a line repeated, or two
+/// messages at one offset; message numbers that do not increase; a message shorter than
+/// [`MIN_MESSAGE_BYTES`] or longer than [`MAX_MESSAGE_BYTES`]; an offset past the largest GRIB
+/// file ([`MAX_GRIB_BYTES`]).
 pub fn parse(text: &str) -> Result<Vec<IdxMessage>, String> {
+    if text.len() as u64 > MAX_IDX_BYTES {
+        return Err(format!(
+            "{} bytes, more than an inventory may be ({} KiB)",
+            text.len(),
+            MAX_IDX_BYTES >> 10
+        ));
+    }
     let mut lines: Vec<IdxLine> = Vec::new();
+    // The previous line's (line number, message number, field number).
+    let mut prev: Option<(usize, u64, u64)> = None;
     for (i, raw) in text.lines().enumerate() {
         let raw = raw.trim_end_matches('\r');
         if raw.trim().is_empty() {
             continue;
         }
-        let f: Vec<&str> = raw.split(':').collect();
         let bad = |m: &str| format!("line {}: {m}: {:?}", i + 1, shorten(raw));
+        if lines.len() == MAX_IDX_LINES {
+            return Err(bad(&format!(
+                "more than {MAX_IDX_LINES} lines, more than an inventory may have"
+            )));
+        }
+        let f: Vec<&str> = raw.split(':').collect();
         if f.len() < 6 {
             return Err(bad("fewer than 6 ':'-separated fields"));
         }
+        let (n, k) =
+            message_number(f[0]).ok_or_else(|| bad("the message number is not N or N.K"))?;
         let offset: u64 = f[1]
             .parse()
             .map_err(|_| bad("byte offset is not a number"))?;
+        if offset > MAX_GRIB_BYTES {
+            return Err(bad("byte offset is past the largest GRIB file (2 GiB)"));
+        }
         let date = f[2]
             .strip_prefix("d=")
             .ok_or_else(|| bad("third field is not d=YYYYMMDDHH"))?;
-        if let Some(prev) = lines.last() {
-            if offset < prev.offset {
-                return Err(bad("byte offset goes backwards"));
+        if let (Some(last), Some((pl, pn, pk))) = (lines.last(), prev) {
+            let gap = offset
+                .checked_sub(last.offset)
+                .ok_or_else(|| bad("byte offset goes backwards"))?;
+            if gap == 0 && (n, k) == (pn, pk) {
+                return Err(bad(&format!("repeats line {pl}")));
+            }
+            if gap == 0 && (n != pn || k < pk) {
+                return Err(bad(&format!(
+                    "starts at the byte of message {pn} (line {pl}): two messages cannot start at one byte"
+                )));
+            }
+            if gap > 0 && n <= pn {
+                return Err(bad(&format!(
+                    "message {n} after message {pn} (line {pl}): message numbers must increase"
+                )));
+            }
+            if gap > 0 && gap < MIN_MESSAGE_BYTES {
+                return Err(bad(&format!(
+                    "would make message {pn} (line {pl}) {gap} bytes long; a GRIB2 message is at least {MIN_MESSAGE_BYTES}"
+                )));
+            }
+            if gap > MAX_MESSAGE_BYTES {
+                return Err(bad(&format!(
+                    "would make message {pn} (line {pl}) {gap} bytes long, more than a GFS message can be ({} MiB)",
+                    MAX_MESSAGE_BYTES >> 20
+                )));
             }
         }
+        if lines.last().is_none_or(|l| l.offset != offset) && k != 1 {
+            return Err(bad(&format!("field {k} of a message with no field 1")));
+        }
+        prev = Some((i + 1, n, k));
         lines.push(IdxLine {
             number: f[0].to_string(),
             offset,
@@ -292,6 +371,38 @@ mod tests {
         assert!(parse("1:x:d=1:HGT:1000 mb:anl:")
             .unwrap_err()
             .contains("offset"));
+    }
+
+    #[test]
+    fn refuses_what_no_file_can_have() {
+        let l = |n: &str, off: u64| format!("{n}:{off}:d=2011011012:RH:500 mb:anl:\n");
+        let e = parse(&(l("1", 0) + &l("1", 0))).unwrap_err();
+        assert!(e.contains("line 2: repeats line 1"), "{e}");
+        let e = parse(&(l("1", 0) + &l("2", 0))).unwrap_err();
+        assert!(e.contains("two messages cannot start at one byte"), "{e}");
+        let e = parse(&(l("2", 0) + &l("1", 1000))).unwrap_err();
+        assert!(e.contains("must increase"), "{e}");
+        let e = parse(&(l("1", 0) + &l("2", 1))).unwrap_err();
+        assert!(
+            e.contains("1 bytes long; a GRIB2 message is at least 86"),
+            "{e}"
+        );
+        let e = parse(&(l("1", 0) + &l("2", 600_000_000))).unwrap_err();
+        assert!(e.contains("more than a GFS message can be"), "{e}");
+        let e = parse(&l("1.2", 0)).unwrap_err();
+        assert!(e.contains("no field 1"), "{e}");
+        let e = parse(&l("x", 0)).unwrap_err();
+        assert!(e.contains("message number"), "{e}");
+        let many: String = (0..=MAX_IDX_LINES as u64)
+            .map(|i| format!("{}:{}:d=1:A:1 mb:anl:\n", i + 1, i * 100))
+            .collect();
+        let e = parse(&many).unwrap_err();
+        assert!(e.contains("more than 10000 lines"), "{e}");
+        let big = "\n".repeat(MAX_IDX_BYTES as usize + 1);
+        assert!(parse(&big).unwrap_err().contains("more than an inventory"));
+        // Fields of one message: N.1, N.2 at one offset.
+        let m = parse(&(l("1.1", 0) + &l("1.2", 0) + &l("2", 200))).unwrap();
+        assert_eq!((m.len(), m[0].lines.len()), (2, 2));
     }
 
     #[test]

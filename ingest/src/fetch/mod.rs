@@ -1,27 +1,37 @@
 //! Downloading the GFS fields stratus needs, not whole forecast files: the run's `.idx`
-//! inventory says where each message lies ([`idx`]), the fields and levels asked for pick
-//! messages ([`select`]), adjacent ones are merged into a few byte ranges ([`plan_chunks`])
-//! fetched a few at a time with retries ([`http`]) through a cache that lets an interrupted
-//! run resume ([`cache`]); every message is checked with the GRIB2 validator and against its
-//! inventory line before the step's file is written, atomically. URL layouts: [`source`].
+//! inventory says where each message lies ([`idx`], which refuses what no GFS file's
+//! inventory can be), the fields and levels asked for pick messages ([`select`]), adjacent
+//! ones are merged into a few byte ranges ([`plan_chunks`]) fetched a few at a time with
+//! retries ([`http`]) into a cache that lets an interrupted run resume ([`cache`]).
+//!
+//! Nothing is held whole in memory, and nothing unchecked is kept: a range streams to its
+//! cache file while each message's indicator section is checked as it arrives, then each
+//! message is checked whole ([`check`]: valid GRIB2, the fields its inventory lines name,
+//! its data decoding to plausible values) before the range is kept. Ranges already cached
+//! are checked the same way (and against their CRC) on a re-run, every bad one dropped and
+//! downloaded again. Before downloading, the free space is checked ([`space`]); the step's
+//! file is then assembled from the cache, each range removed as soon as it is copied, so a
+//! step needs its size once on disk, not twice. URL layouts: [`source`].
 
 pub mod cache;
+pub mod check;
 pub mod http;
 pub mod idx;
 pub mod select;
 pub mod source;
+pub mod space;
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use thiserror::Error;
-
-use crate::error::IngestError;
-use crate::grib::{self, MessageInfo};
-use cache::Cache;
-use http::{ByteRange, Client, MAX_IDX_BYTES};
-use idx::IdxMessage;
+use crate::error::{shown, IngestError};
+use cache::{Cache, Lookup};
+pub use check::check_against_inventory;
+use check::{describe, HeadWatch, Problem};
+use http::{BodyError, ByteRange, Client};
+use idx::{IdxMessage, MAX_IDX_BYTES, MAX_MESSAGE_BYTES};
 use select::{FieldSpec, Levels};
 use source::Run;
 
@@ -29,31 +39,76 @@ use source::Run;
 /// requests that can run in parallel and a failed one costs little to repeat.
 pub const MAX_CHUNK_BYTES: u64 = 16 << 20;
 
-#[derive(Debug, Error)]
+/// Most bytes the messages picked from one step may be: 1 GiB, twice a whole GFS 0.25° step
+/// file (about 500 MB), which no choice of fields can exceed. (The default fields at 0.25°
+/// are about 150 MB.)
+pub const MAX_STEP_BYTES: u64 = 1 << 30;
+
+/// Why a fetch failed; one line, with any password in a URL hidden ([`source::redact`]).
+#[derive(Debug)]
 pub enum FetchError {
-    #[error("{url}{}: {msg}", in_range(.range))]
+    /// The server could not be asked or did not answer as HTTP must.
     Http {
         url: String,
         range: Option<ByteRange>,
         msg: String,
     },
-    #[error("{url}: not an inventory: {msg}")]
-    Inventory { url: String, msg: String },
-    #[error("{url}: {msg}")]
-    Select { url: String, msg: String },
-    #[error("{url} ({range}): {msg}")]
-    Mismatch {
+    /// The inventory is not one a GFS file can have.
+    Inventory {
+        url: String,
+        msg: String,
+    },
+    /// The fields or levels asked for are not in the inventory.
+    Select {
+        url: String,
+        msg: String,
+    },
+    /// The bytes served at `range` are not the message the inventory lists there, or are it
+    /// damaged.
+    Served {
         url: String,
         range: ByteRange,
         msg: String,
     },
-    #[error(transparent)]
-    Write(#[from] IngestError),
+    /// Something in the cache folder that is not ours to remove.
+    Cache {
+        path: PathBuf,
+        msg: String,
+    },
+    /// Not enough free space on a file system.
+    Space {
+        path: PathBuf,
+        msg: String,
+    },
+    Write(IngestError),
 }
 
-fn in_range(r: &Option<ByteRange>) -> String {
-    r.map(|r| format!(" ({r})")).unwrap_or_default()
+impl From<IngestError> for FetchError {
+    fn from(e: IngestError) -> FetchError {
+        FetchError::Write(e)
+    }
 }
+
+impl std::fmt::Display for FetchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text = match self {
+            FetchError::Http { url, range, msg } => {
+                let r = range.map(|r| format!(" ({r})")).unwrap_or_default();
+                format!("{url}{r}: {msg}")
+            }
+            FetchError::Inventory { url, msg } => format!("{url}: bad inventory: {msg}"),
+            FetchError::Select { url, msg } => format!("{url}: {msg}"),
+            FetchError::Served { url, range, msg } => format!("{url} ({range}): {msg}"),
+            FetchError::Cache { path, msg } | FetchError::Space { path, msg } => {
+                format!("{}: {msg}", shown(path))
+            }
+            FetchError::Write(e) => e.to_string(),
+        };
+        f.write_str(&source::redact(&text))
+    }
+}
+
+impl std::error::Error for FetchError {}
 
 /// One request: a byte range holding `messages` (indices into the plan's messages).
 #[derive(Debug, Clone, PartialEq)]
@@ -93,7 +148,7 @@ pub struct StepPlan {
     pub step: u32,
     pub grib_url: String,
     /// The file's path under the source's base: what the cache knows its ranges by, so a
-    /// re-run from another source reuses them (every message is validated either way).
+    /// re-run from another source reuses them (every message is checked either way).
     pub cache_key: String,
     pub idx_url: String,
     pub messages: Vec<IdxMessage>,
@@ -107,6 +162,19 @@ impl StepPlan {
     /// answer says).
     pub fn known_bytes(&self) -> u64 {
         self.chunks.iter().filter_map(|c| c.range.len()).sum()
+    }
+
+    /// The most bytes `chunk` may be: its length, or for one that runs to the end of the
+    /// file, up to its last message's start and one message more.
+    fn limit(&self, chunk: &Chunk) -> u64 {
+        chunk.range.len().unwrap_or_else(|| {
+            let last = chunk.messages.end.saturating_sub(1);
+            let start = self
+                .messages
+                .get(last)
+                .map_or(chunk.range.start, |m| m.start);
+            start - chunk.range.start + MAX_MESSAGE_BYTES
+        })
     }
 }
 
@@ -130,7 +198,8 @@ pub struct Fetcher {
 }
 
 impl Fetcher {
-    /// Read the step's inventory and pick its messages.
+    /// Read the step's inventory and pick its messages; refuse a pick larger than
+    /// [`MAX_STEP_BYTES`].
     pub fn plan(&self, step: u32) -> Result<StepPlan, FetchError> {
         let idx_url = self.run.idx_url(step);
         let text = self.client.get_small(&idx_url, MAX_IDX_BYTES)?;
@@ -158,53 +227,105 @@ impl Fetcher {
             }
         })?;
         let chunks = plan_chunks(&messages, MAX_CHUNK_BYTES);
-        Ok(StepPlan {
+        let plan = StepPlan {
             step,
             grib_url: self.run.grib_url(step),
             cache_key: self.run.file_path(step),
-            idx_url,
+            idx_url: idx_url.clone(),
             messages,
             chunks,
             out: self.out_dir.join(self.run.out_name(step)),
-        })
+        };
+        if plan.known_bytes() > MAX_STEP_BYTES {
+            return Err(inv_err(format!(
+                "the {} messages picked are {} bytes, more than a GFS step can be ({} GiB)",
+                plan.messages.len(),
+                plan.known_bytes(),
+                MAX_STEP_BYTES >> 30
+            )));
+        }
+        Ok(plan)
     }
 
-    /// Download (or read from the cache) every chunk of `plan`, validate every message, and
-    /// write the step's file atomically. The cache entries are removed once the file is in
-    /// place. Returns the file's size.
+    /// Get every chunk of `plan` into the cache, checked (what is cached already is checked
+    /// again), then write the step's file atomically from the cache, removing each range as
+    /// it is copied. Returns the file's size.
     pub fn fetch(&self, plan: &StepPlan, progress: &dyn Progress) -> Result<u64, FetchError> {
         crate::output::check_output(&plan.out)?;
-        let data = self.download(plan, progress)?;
-        for (chunk, bytes) in plan.chunks.iter().zip(&data) {
-            if let Err(e) = self.check_chunk(plan, chunk, bytes) {
-                // What is in the cache may be what is wrong: the next run asks again.
-                self.cache.remove(&plan.cache_key, chunk.range);
-                return Err(e);
+        let mut missing = Vec::new();
+        for (i, chunk) in plan.chunks.iter().enumerate() {
+            match self.cached(plan, chunk)? {
+                Some(len) => progress.cached(len),
+                None => missing.push(i),
             }
         }
-        // Chunk by chunk into the file: no second copy of the step in memory.
-        crate::output::write_atomic(&plan.out, |w| {
-            use std::io::Write;
-            data.iter()
-                .try_for_each(|bytes| w.write_all(bytes))
-                .map_err(|e| e.to_string())
-        })?;
-        for c in &plan.chunks {
-            self.cache.remove(&plan.cache_key, c.range);
-        }
-        Ok(data.iter().map(|b| b.len() as u64).sum())
+        space::check(self, plan, &missing)?;
+        self.download(plan, &missing, progress)?;
+        self.assemble(plan)
     }
 
-    /// Every chunk's bytes, in plan order: from the cache where a whole one is there, else
-    /// downloaded (a few at once) and put in the cache. The first failure stops the others
-    /// from starting new requests; what they finished stays cached.
+    /// A chunk's length if the cache holds it whole and its messages pass the checks; a bad
+    /// one is removed (with a warning saying why), to be downloaded again.
+    fn cached(&self, plan: &StepPlan, chunk: &Chunk) -> Result<Option<u64>, FetchError> {
+        let why = match self.cache.get(&plan.cache_key, chunk.range)? {
+            Lookup::Absent => return Ok(None),
+            Lookup::Damaged(why) => why,
+            Lookup::Whole(c) => {
+                match self.check_chunk(plan, chunk, c.len, |at, n| c.read_at(at, n)) {
+                    Ok(()) => return Ok(Some(c.len)),
+                    Err((_, p)) => {
+                        let (Problem::NotListed(m) | Problem::Damaged(m)) = p;
+                        format!("{}: {m}", shown(&c.path))
+                    }
+                }
+            }
+        };
+        tracing::warn!(
+            "{}",
+            source::redact(&format!(
+                "{why}; dropped that cached range of {} ({}), downloading it again",
+                plan.grib_url, chunk.range
+            ))
+        );
+        self.cache.remove(&plan.cache_key, chunk.range);
+        Ok(None)
+    }
+
+    /// Check every message of a chunk of `len` bytes, read with `read_at` (from the chunk's
+    /// start); the first failure with its message's range.
+    fn check_chunk(
+        &self,
+        plan: &StepPlan,
+        chunk: &Chunk,
+        len: u64,
+        mut read_at: impl FnMut(u64, u64) -> std::io::Result<Vec<u8>>,
+    ) -> Result<(), (ByteRange, Problem)> {
+        for m in &plan.messages[chunk.messages.clone()] {
+            let range = ByteRange {
+                start: m.start,
+                end: m.end,
+            };
+            let at = m.start - chunk.range.start;
+            let n = m.end.map_or(len.saturating_sub(at), |e| e - m.start);
+            let bytes = read_at(at, n).map_err(|e| {
+                (
+                    range,
+                    Problem::Damaged(format!("{}: cannot be read: {e}", describe(m))),
+                )
+            })?;
+            check::check_message(&bytes, m).map_err(|p| (range, p))?;
+        }
+        Ok(())
+    }
+
+    /// Download the chunks `which` of `plan` into the cache, a few at once. The first failure
+    /// stops the others from starting new requests; what they finished stays cached.
     fn download(
         &self,
         plan: &StepPlan,
+        which: &[usize],
         progress: &dyn Progress,
-    ) -> Result<Vec<Vec<u8>>, FetchError> {
-        let n = plan.chunks.len();
-        let results: Mutex<Vec<Option<Vec<u8>>>> = Mutex::new(vec![None; n]);
+    ) -> Result<(), FetchError> {
         let first_error: Mutex<Option<FetchError>> = Mutex::new(None);
         let next = AtomicUsize::new(0);
         let stop = AtomicBool::new(false);
@@ -212,139 +333,137 @@ impl Fetcher {
             if stop.load(Ordering::SeqCst) {
                 return;
             }
-            let i = next.fetch_add(1, Ordering::SeqCst);
-            let Some(chunk) = plan.chunks.get(i) else {
+            let Some(chunk) = which
+                .get(next.fetch_add(1, Ordering::SeqCst))
+                .and_then(|&i| plan.chunks.get(i))
+            else {
                 return;
             };
-            let got = match self.cache.get(&plan.cache_key, chunk.range) {
-                Some(b) => {
-                    progress.cached(b.len() as u64);
-                    Ok(b)
-                }
-                None => self
-                    .client
-                    .get_range(&plan.grib_url, chunk.range, &|d| progress.downloaded(d))
-                    .and_then(|b| {
-                        self.cache.put(&plan.cache_key, chunk.range, &b)?;
-                        Ok(b)
-                    }),
-            };
-            match got {
-                Ok(b) => lock(&results)[i] = Some(b),
-                Err(e) => {
-                    stop.store(true, Ordering::SeqCst);
-                    lock(&first_error).get_or_insert(e);
-                    return;
-                }
+            if let Err(e) = self.download_chunk(plan, chunk, progress) {
+                stop.store(true, Ordering::SeqCst);
+                lock(&first_error).get_or_insert(e);
+                return;
             }
         };
         std::thread::scope(|s| {
-            for _ in 0..self.parallel.clamp(1, 16).min(n.max(1)) {
+            for _ in 0..self.parallel.clamp(1, 16).min(which.len().max(1)) {
                 s.spawn(work);
             }
         });
-        if let Some(e) = lock(&first_error).take() {
-            return Err(e);
+        let first = lock(&first_error).take();
+        match first {
+            Some(e) => Err(e),
+            None => Ok(()),
         }
-        let results = std::mem::take(&mut *lock(&results));
-        results
-            .into_iter()
-            .zip(&plan.chunks)
-            .map(|(r, c)| {
-                r.ok_or_else(|| FetchError::Http {
-                    url: plan.grib_url.clone(),
-                    range: Some(c.range),
-                    msg: "not downloaded".into(),
-                })
-            })
-            .collect()
     }
 
-    /// Split a chunk into its messages and check each: a valid GRIB2 message by itself, of
-    /// the parameter, level and run its inventory lines say.
-    fn check_chunk(&self, plan: &StepPlan, chunk: &Chunk, bytes: &[u8]) -> Result<(), FetchError> {
-        for m in &plan.messages[chunk.messages.clone()] {
-            let range = ByteRange {
-                start: m.start,
-                end: m.end,
-            };
-            let mismatch = |msg: String| FetchError::Mismatch {
-                url: plan.grib_url.clone(),
-                range,
-                msg,
-            };
-            let a = (m.start - chunk.range.start) as usize;
-            let b = match m.end {
-                Some(e) => (e - chunk.range.start) as usize,
-                None => bytes.len(),
-            };
-            let what = describe(m);
-            let msg = bytes
-                .get(a..b)
-                .ok_or_else(|| mismatch(format!("{what}: missing bytes")))?;
-            let fields = grib::validate_message(msg).map_err(|e| {
-                if msg.starts_with(b"GRIB") {
-                    mismatch(format!("{what}: not a valid GRIB2 message: {e}"))
-                } else {
-                    mismatch(format!(
-                        "the inventory {} does not match the file: no GRIB message starts at byte {} where it places {what}",
-                        plan.idx_url, m.start
-                    ))
-                }
-            })?;
-            check_against_inventory(m, &fields).map_err(|e| {
-                mismatch(format!(
-                    "the inventory {} does not match the file: {e}",
+    /// One chunk, streamed into its cache file: each message's indicator section checked as
+    /// it arrives (a server sending something else is refused at once), every message checked
+    /// whole before the file is kept.
+    fn download_chunk(
+        &self,
+        plan: &StepPlan,
+        chunk: &Chunk,
+        progress: &dyn Progress,
+    ) -> Result<(), FetchError> {
+        let served = |range: ByteRange, p: Problem| FetchError::Served {
+            url: plan.grib_url.clone(),
+            range,
+            msg: match p {
+                Problem::NotListed(m) => format!(
+                    "the server's bytes do not match the inventory {}: {m}",
                     plan.idx_url
-                ))
-            })?;
-        }
-        Ok(())
+                ),
+                Problem::Damaged(m) => format!("the server sent a damaged message: {m}"),
+            },
+        };
+        let messages = &plan.messages[chunk.messages.clone()];
+        self.client.get_range(
+            &plan.grib_url,
+            chunk.range,
+            plan.limit(chunk),
+            &|d| progress.downloaded(d),
+            &mut |body, len| {
+                let mut why: Option<BodyError> = None;
+                let mut arrived = 0u64;
+                let put = self.cache.put(&plan.cache_key, chunk.range, |w| {
+                    let mut watch = HeadWatch::new(messages, chunk.range.start, len);
+                    let mut buf = vec![0u8; 64 * 1024];
+                    loop {
+                        let n = body.read(&mut buf).map_err(|e| e.to_string())?;
+                        if n == 0 {
+                            break;
+                        }
+                        if let Err(m) = watch.feed(arrived, &buf[..n]) {
+                            why =
+                                Some(BodyError::Fatal(served(chunk.range, Problem::NotListed(m))));
+                            return Err(String::new());
+                        }
+                        if let Err(e) = w.write(&buf[..n]) {
+                            why = Some(BodyError::Fatal(FetchError::Cache {
+                                path: self.cache.path(&plan.cache_key, chunk.range),
+                                msg: format!("cannot write a cached range: {e}"),
+                            }));
+                            return Err(String::new());
+                        }
+                        arrived += n as u64;
+                    }
+                    if arrived != len {
+                        return Err(format!("{arrived} bytes arrived for a range of {len}"));
+                    }
+                    if let Err((r, p)) =
+                        self.check_chunk(plan, chunk, len, |at, n| w.read_at(at, n))
+                    {
+                        why = Some(BodyError::Fatal(served(r, p)));
+                        return Err(String::new());
+                    }
+                    Ok(())
+                });
+                match (put, why) {
+                    (_, Some(why)) => Err(why),
+                    (Ok(()), None) => Ok(()),
+                    // The body ended early or broke off: worth another try.
+                    (Err(_), None) if arrived != len => Err(BodyError::Retry(format!(
+                        "{arrived} bytes arrived for a range of {len}"
+                    ))),
+                    (Err(e), None) => Err(BodyError::Fatal(e.into())),
+                }
+            },
+        )
     }
-}
 
-/// `message 12 (RH 500 mb)`.
-fn describe(m: &IdxMessage) -> String {
-    let what: Vec<String> = m
-        .lines
-        .iter()
-        .map(|l| format!("{} {}", l.name, l.level))
-        .collect();
-    let number = m.lines.first().map_or("?", |l| l.number.as_str());
-    format!("message {number} ({})", what.join(", "))
-}
-
-/// The fields of one message against its inventory lines: as many, and each of the parameter,
-/// isobaric level and run its line names (where stratus knows the name).
-pub fn check_against_inventory(m: &IdxMessage, fields: &[MessageInfo]) -> Result<(), String> {
-    if fields.len() != m.lines.len() {
-        return Err(format!(
-            "the message at byte {} holds {} field(s), the inventory lists {}",
-            m.start,
-            fields.len(),
-            m.lines.len()
-        ));
-    }
-    for (line, f) in m.lines.iter().zip(fields) {
-        let is = format!("{} {}", idx::ncep_name(f), idx::level_text(f));
-        let says = format!("{} {}", line.name, line.level);
-        let wrong_param = idx::parameter_of(&line.name).is_some_and(|p| p != f.parameter());
-        let wrong_level = select::mb_of(&line.level)
-            .is_some_and(|p| f.pressure_hpa().is_none_or(|q| (p - q).abs() > 1e-6));
-        let wrong_run = f
-            .reference_time
-            .is_some_and(|t| t.format("%Y%m%d%H").to_string() != line.date);
-        if wrong_param || wrong_level || wrong_run {
-            return Err(format!(
-                "the message at byte {} is {is} of d={}, the inventory says {says} of d={}",
-                m.start,
-                f.reference_time
-                    .map_or_else(|| "?".into(), |t| t.format("%Y%m%d%H").to_string()),
-                line.date
-            ));
+    /// Write the step's file from its cached chunks, in order, removing each chunk from the
+    /// cache as soon as it is copied (the step is on disk once, plus one chunk). Returns the
+    /// file's size.
+    fn assemble(&self, plan: &StepPlan) -> Result<u64, FetchError> {
+        let mut size = 0u64;
+        let mut missing: Option<FetchError> = None;
+        let written = crate::output::write_atomic(&plan.out, |w| {
+            for chunk in &plan.chunks {
+                let c = match self.cache.get(&plan.cache_key, chunk.range) {
+                    Ok(Lookup::Whole(c)) => c,
+                    Ok(Lookup::Absent) => {
+                        return Err(format!("the cached {} is gone", chunk.range))
+                    }
+                    Ok(Lookup::Damaged(why)) => return Err(why),
+                    Err(e) => {
+                        missing = Some(e);
+                        return Err(String::new());
+                    }
+                };
+                c.copy_to(w)
+                    .map_err(|e| format!("{}: {e}", shown(&c.path)))?;
+                size += c.len;
+                self.cache.remove(&plan.cache_key, chunk.range);
+            }
+            Ok(())
+        });
+        match (written, missing) {
+            (_, Some(e)) => Err(e),
+            (Err(e), None) => Err(e.into()),
+            (Ok(()), None) => Ok(size),
         }
     }
-    Ok(())
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -363,30 +482,30 @@ mod tests {
     #[test]
     fn adjacent_messages_merge_up_to_the_cap() {
         let inv = idx::parse(
-            "1:0:d=1:A:1 mb:anl:\n2:10:d=1:B:1 mb:anl:\n3:20:d=1:C:1 mb:anl:\n4:30:d=1:D:1 mb:anl:\n5:45:d=1:E:1 mb:anl:\n",
+            "1:0:d=1:A:1 mb:anl:\n2:1000:d=1:B:1 mb:anl:\n3:2000:d=1:C:1 mb:anl:\n4:3000:d=1:D:1 mb:anl:\n5:4500:d=1:E:1 mb:anl:\n",
         )
         .unwrap();
         // Take 1, 2, 4, 5: 1+2 merge, 4+5 merge (5 runs to the end).
         let picked: Vec<IdxMessage> = [0, 1, 3, 4].iter().map(|&i| inv[i].clone()).collect();
-        let c = plan_chunks(&picked, 100);
+        let c = plan_chunks(&picked, 10_000);
         assert_eq!(c.len(), 2);
         assert_eq!(
             c[0].range,
             ByteRange {
                 start: 0,
-                end: Some(20)
+                end: Some(2000)
             }
         );
         assert_eq!(c[0].messages, 0..2);
         assert_eq!(
             c[1].range,
             ByteRange {
-                start: 30,
+                start: 3000,
                 end: None
             }
         );
-        // A cap of 15 bytes keeps 1 and 2 apart.
-        let c = plan_chunks(&picked, 15);
+        // A cap of 1500 bytes keeps 1 and 2 apart.
+        let c = plan_chunks(&picked, 1500);
         assert_eq!(c.len(), 3);
     }
 }

@@ -304,12 +304,12 @@ mod tests {
     use super::*;
 
     const INV: &str = "1:0:d=2024010100:HGT:1000 mb:6 hour fcst:\n\
-                       2:10:d=2024010100:RH:1000 mb:6 hour fcst:\n\
-                       3:20:d=2024010100:RH:500 mb:6 hour fcst:\n\
-                       4:30:d=2024010100:RH:10 mb:6 hour fcst:\n\
-                       5:40:d=2024010100:TCDC:low cloud layer:0-6 hour ave fcst:\n\
-                       6:50:d=2024010100:HGT:surface:6 hour fcst:\n\
-                       7:60:d=2024010100:TMP:2 m above ground:6 hour fcst:\n";
+                       2:1000:d=2024010100:RH:1000 mb:6 hour fcst:\n\
+                       3:2000:d=2024010100:RH:500 mb:6 hour fcst:\n\
+                       4:3000:d=2024010100:RH:10 mb:6 hour fcst:\n\
+                       5:4000:d=2024010100:TCDC:low cloud layer:0-6 hour ave fcst:\n\
+                       6:5000:d=2024010100:HGT:surface:6 hour fcst:\n\
+                       7:6000:d=2024010100:TMP:2 m above ground:6 hour fcst:\n";
 
     #[test]
     fn steps() {
@@ -357,7 +357,10 @@ mod tests {
         let inv = parse(INV).unwrap();
         let lv = parse_levels(DEFAULT_LEVELS).unwrap();
         let p = pick(&inv, &parse_fields("r").unwrap(), &lv).unwrap();
-        assert_eq!(p.iter().map(|m| m.start).collect::<Vec<_>>(), vec![10, 20]);
+        assert_eq!(
+            p.iter().map(|m| m.start).collect::<Vec<_>>(),
+            vec![1000, 2000]
+        );
         let p = pick(
             &inv,
             &parse_fields("orog,tcc,TMP@2 m above ground").unwrap(),
@@ -366,13 +369,13 @@ mod tests {
         .unwrap();
         assert_eq!(
             p.iter().map(|m| m.start).collect::<Vec<_>>(),
-            vec![40, 50, 60]
+            vec![4000, 5000, 6000]
         );
         // The default set skips what is absent (no wind here).
         let p = pick(&inv, &default_fields(), &lv).unwrap();
         assert_eq!(
             p.iter().map(|m| m.start).collect::<Vec<_>>(),
-            vec![0, 10, 20, 40, 50]
+            vec![0, 1000, 2000, 4000, 5000]
         );
         let e = pick(&inv, &parse_fields("u").unwrap(), &lv).unwrap_err();
         assert!(e.contains("no UGRD"), "{e}");

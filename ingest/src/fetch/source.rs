@@ -30,8 +30,14 @@ pub fn base_url(source: &str) -> Result<String, String> {
         "aws" => AWS.to_string(),
         "google" => GOOGLE.to_string(),
         s if s.starts_with("http://") || s.starts_with("https://") => {
+            let shown = redact(s);
             if s.chars().any(|c| c.is_whitespace() || c.is_control()) {
-                return Err(format!("--source {s:?} is not a URL"));
+                return Err(format!("--source {shown:?} is not a URL"));
+            }
+            if host(s).is_empty() {
+                return Err(format!(
+                    "--source \"{shown}\" names no host: give a base URL such as http://mirror.example/gfs/"
+                ));
             }
             s.to_string()
         }
@@ -46,6 +52,54 @@ pub fn base_url(source: &str) -> Result<String, String> {
     } else {
         base + "/"
     })
+}
+
+/// The authority of an `http(s)://` URL (what lies between `//` and the next `/`, `?` or `#`)
+/// and where it starts in `url`.
+fn authority(url: &str) -> Option<(usize, &str)> {
+    let start = url.find("://")? + 3;
+    let rest = &url[start..];
+    let end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    Some((start, &rest[..end]))
+}
+
+/// The host (and port) of an `http(s)://` URL, without any `user:password@`.
+pub fn host(url: &str) -> &str {
+    let Some((_, auth)) = authority(url) else {
+        return "";
+    };
+    let host = auth.rsplit_once('@').map_or(auth, |(_, h)| h);
+    // A port alone (`http://:80/`) is no host either.
+    if host.starts_with(':') {
+        ""
+    } else {
+        host
+    }
+}
+
+/// `text` with the password of every URL in it hidden: `http://user:secret@host/` is shown as
+/// `http://user:***@host/` (and `http://token@host/` as `http://***@host/`), in errors, logs and
+/// progress alike.
+pub fn redact(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some((start, auth)) = authority(rest) {
+        let (head, tail) = rest.split_at(start);
+        out.push_str(head);
+        match auth.rsplit_once('@') {
+            Some((user, host)) => {
+                match user.split_once(':') {
+                    Some((name, _)) => out.push_str(&format!("{name}:***@")),
+                    None => out.push_str("***@"),
+                }
+                out.push_str(host);
+            }
+            None => out.push_str(auth),
+        }
+        rest = &tail[auth.len()..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// A resolution name as it appears in the file name (`0p25`): letters and digits only, so it
@@ -128,6 +182,24 @@ mod tests {
             "http://127.0.0.1:1/x/"
         );
         assert!(base_url("ftp://x").is_err());
+        for no_host in [
+            "http://",
+            "https:///gfs",
+            "http://user:pw@/x",
+            "http://:80/",
+        ] {
+            assert!(
+                base_url(no_host).unwrap_err().contains("names no host"),
+                "{no_host}"
+            );
+        }
+        let e = base_url("http://u:secret@/x").unwrap_err();
+        assert!(!e.contains("secret"), "{e}");
+        assert_eq!(
+            redact("a http://u:secret@h:1/p and https://tok@h/q, http://h/r"),
+            "a http://u:***@h:1/p and https://***@h/q, http://h/r"
+        );
+        assert_eq!(host("http://u:p@h:8/x"), "h:8");
         assert!(check_resolution("0p25").is_ok() && check_resolution("../x").is_err());
     }
 }
