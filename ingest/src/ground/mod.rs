@@ -172,7 +172,8 @@ impl Ground {
     }
 
     /// The ground at (`lat`, `lon`): bilinear between the lattice's texel centres, clamped to
-    /// the outer ones (module doc). `None` outside the map's region or for a non-finite point.
+    /// the outer ones (module doc); beyond the outer row of a pole the region reaches, blended
+    /// toward that row's mean, so the pole has one value ([`StructureGrid::pole_weight`]). `None` outside the map's region or for a non-finite point.
     pub fn at(&self, lat: f64, lon: f64) -> Option<GroundSample> {
         let r = &self.region;
         if !(lat.is_finite() && lon.is_finite()) || lat < r.south || lat > r.north {
@@ -193,7 +194,13 @@ impl Ground {
             (j1 * w + i0, (1.0 - tx) * ty),
             (j1 * w + i1, tx * ty),
         ];
-        let f = |v: &[f32]| taps.iter().map(|&(k, wt)| v[k] as f64 * wt).sum::<f64>();
+        // Near a pole the region reaches, toward the pole row's mean (one pole, one answer).
+        let pole = g.pole_weight(r, lat);
+        let f = |v: &[f32]| {
+            let near = taps.iter().map(|&(k, wt)| v[k] as f64 * wt).sum::<f64>();
+            g.toward_pole(pole, Some(near), |k| Some(v[k] as f64))
+                .unwrap_or(near)
+        };
         let snow = f(&self.snow_kg_m2);
         Some(GroundSample {
             height_m: f(&self.height_m),
