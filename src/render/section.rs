@@ -57,7 +57,7 @@ const COLUMN_BYTES: u64 = 16;
 pub fn check_fits(limits: &wgpu::Limits, width: u32, height: u32) -> Result<(), String> {
     let mib = |b: u64| format!("{:.0} MiB", b as f64 / (1u64 << 20) as f64);
     let (binding, buffer) = (
-        limits.max_storage_buffer_binding_size as u64,
+        limits.max_storage_buffer_binding_size,
         limits.max_buffer_size,
     );
     let (cap, name) = if binding <= buffer {
