@@ -247,10 +247,11 @@ pub fn parse_camera(
     };
     if alt_m < ground {
         use stratus_ingest::meta::show_num;
-        // To the decimetre: a camera 0.3 m under terrain at 0.2 m is not "0 m below 0 m".
-        let m = |x: f64| match x.abs() < 1e9 {
-            true => show_num((x * 10.0).round() / 10.0),
-            false => show_num(x),
+        // Whole metres, decimetres under one (a camera 0.3 m under is not "0 m below").
+        let m = |x: f64| match x.abs() {
+            a if a > 0.0 && a < 0.5 => format!("{:.1}", (x * 10.0).round() / 10.0 + 0.0),
+            a if a < 1e9 => format!("{:.0}", x.round() + 0.0),
+            _ => show_num(x),
         };
         anyhow::bail!(
             "--camera {s}: the camera at {} m is {} m below the ground there, which is at {} m ({}); give an altitude above it, or LAT,LON,ground+N",
