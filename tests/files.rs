@@ -557,7 +557,8 @@ fn reads_are_bounded() {
                 o("--out"),
                 out.as_os_str(),
             ],
-            "larger than 1 MiB",
+            // A map's files are read only as regular files (issue 28: a FIFO would hang).
+            "it is a character device, not a regular file",
         ),
         (
             vec![

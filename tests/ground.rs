@@ -214,7 +214,7 @@ fn cameras_cannot_go_below_the_terrain_but_can_stand_on_it() {
         &[
             "below the ground",
             "at 1000 m",
-            &format!("({ground:.0} m, the map's terrain"),
+            &format!("which is at {ground:.0} m (the map's terrain"),
             "ground+N",
         ],
         &out,

@@ -321,3 +321,85 @@ fn probe_reports_the_column() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(err.contains("outside the map's region"), "{err}");
 }
+
+/// Issue 28: on a global map the pole is one point with one answer, whatever longitude it is
+/// asked at (ground and every layer), and a point off the globe is refused naming `--at`.
+#[test]
+fn the_pole_answers_the_same_at_every_longitude() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = sample("gfs-2011011012-f120-2p5.grib2");
+    let png = dir.path().join("globe.png");
+    let o = stratus(&[
+        "ingest",
+        file.to_str().unwrap(),
+        "--region",
+        "-90,90,-180,180",
+        "--size",
+        "144x72",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let map = dir.path().join("globe.json");
+    let probe = |at: &str| {
+        let o = stratus(&[
+            "probe",
+            "--map",
+            map.to_str().unwrap(),
+            "--at",
+            at,
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("lat");
+        o.remove("lon");
+        v
+    };
+    for lat in ["90", "-90"] {
+        let at = |lon: &str| probe(&format!("{lat},{lon}"));
+        let first = at("0");
+        for lon in ["90", "180", "-180", "-135", "37.5"] {
+            assert_eq!(at(lon), first, "the pole at {lat},{lon} and {lat},0");
+        }
+    }
+    // Just off the pole the answer still follows the longitude (the fix is at the pole).
+    assert_ne!(probe("80,0"), probe("80,180"));
+
+    for (at, what) in [
+        ("91,0", "latitude 91 is outside -90..90"),
+        ("0,1000", "longitude 1000 is outside -360..360"),
+        ("0,nan", "LAT,LON"),
+    ] {
+        let o = stratus(&["probe", "--map", map.to_str().unwrap(), "--at", at]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{at}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains("--at") && err.contains(what), "{at}: {err}");
+    }
+}
+
+/// Issue 28 #15: a GeoTIFF (or a PNG) given where a map's sidecar belongs is named as what it
+/// is, not "sidecar is not UTF-8".
+#[test]
+fn a_geotiff_given_as_map_is_named_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let gfs = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    let tif = dir.path().join("natl.tif");
+    let mut args = vec!["ingest", gfs.to_str().unwrap()];
+    args.extend_from_slice(&EA);
+    args.extend_from_slice(&["--out", tif.to_str().unwrap()]);
+    let o = stratus(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let png = real_map(dir.path(), "natl", "0,55,39,105", "130x110").with_extension("png");
+    for (file, what) in [(&tif, "it is a TIFF"), (&png, "it is a PNG")] {
+        let o = stratus(&["probe", "--map", file.to_str().unwrap(), "--at", "30,70"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(file.to_str().unwrap()), "{err}");
+        assert!(err.contains(what) && err.contains("JSON sidecar"), "{err}");
+        assert!(!err.contains("UTF-8"), "{err}");
+    }
+}

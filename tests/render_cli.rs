@@ -113,3 +113,39 @@ fn bad_inputs_are_one_line_errors() {
         &out,
     );
 }
+
+/// Issue 28 #7 and #15: `--camera` reads its point with the one LAT,LON parser (latitude
+/// within ±90, longitude within ±360), and a camera under the ground says how far under
+/// (500 m below ground at 0 m, not "at -500 m … (0 m)"); huge numbers are echoed compactly.
+#[test]
+fn camera_points_and_depths_are_checked_and_said_plainly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let map = synthetic_map(d);
+    let out = d.join("f.png");
+    refused(
+        &render(&map, "45,1000,9000", &out, &[]),
+        "--camera \"45,1000,9000\": longitude 1000 is outside -360..360",
+        &out,
+    );
+    refused(
+        &render(&map, "91,-22,9000", &out, &[]),
+        "--camera \"91,-22,9000\": latitude 91 is outside -90..90",
+        &out,
+    );
+    refused(
+        &render(&map, "45,-22,-500", &out, &[]),
+        "the camera at -500 m is 500 m below the ground there, which is at 0 m",
+        &out,
+    );
+    refused(
+        &render(&map, "45,-22,-1e308", &out, &[]),
+        "the camera at -1e308 m is 1e308 m below the ground",
+        &out,
+    );
+    refused(
+        &render(&map, "45,-22,1e308", &out, &[]),
+        "altitude 1e308 m is above the 10000000 m limit",
+        &out,
+    );
+}

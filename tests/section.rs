@@ -113,3 +113,97 @@ fn bad_paths_and_heights_are_refused() {
         assert!(!out.exists(), "{from} {to}: a picture was written");
     }
 }
+
+/// Issue 28 #7: a point is LAT,LON with the latitude within ±90 and the longitude within ±360
+/// (one parser for every command); anything else is one line naming the flag.
+#[test]
+fn points_off_the_globe_are_refused_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = natl(dir.path());
+    let out = dir.path().join("s.png");
+    for (from, to, flag, what) in [
+        (
+            "1000,0",
+            "50,-20",
+            "--from",
+            "latitude 1000 is outside -90..90",
+        ),
+        ("91,0", "50,-20", "--from", "latitude 91 is outside"),
+        ("50,-20", "180,0", "--to", "latitude 180 is outside"),
+        ("50,-20", "-90.5,0", "--to", "latitude -90.5 is outside"),
+        (
+            "50,400",
+            "50,-20",
+            "--from",
+            "longitude 400 is outside -360..360",
+        ),
+        ("50,-20", "50,-1e308", "--to", "longitude -1e308 is outside"),
+        ("nan,0", "50,-20", "--from", "LAT,LON"),
+        ("50,-20", "50,inf", "--to", "LAT,LON"),
+    ] {
+        let o = stratus(&[
+            "section",
+            "--map",
+            &map,
+            "--from",
+            from,
+            "--to",
+            to,
+            "--size",
+            "64x32",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{from} {to}: {err}");
+        let line = err.trim();
+        assert_eq!(line.lines().count(), 1, "{err}");
+        assert!(
+            line.contains(flag) && line.contains(what),
+            "{from} {to}: wanted {flag} and {what:?} in {err}"
+        );
+        assert!(!out.exists(), "{from} {to}: a picture was written");
+    }
+}
+
+/// Issue 28 #8: a section larger than the device can hold is refused before anything is
+/// allocated, one line naming --size and the limit (not a wgpu validation error after seconds).
+/// Where the adapter does hold it (a GPU whose storage buffers bind 256 MiB), it is drawn.
+#[test]
+fn a_section_larger_than_the_device_allows_is_one_line_naming_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = natl(dir.path());
+    let out = dir.path().join("s.png");
+    let o = stratus(&[
+        "section",
+        "--map",
+        &map,
+        "--from",
+        "50,-20",
+        "--to",
+        "60,0",
+        "--size",
+        "8192x8192",
+        "--preset",
+        "fast",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.success() {
+        assert!(out.exists());
+        return;
+    }
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    // Mesa's Wayland probe may print a line of its own on machines without a display session.
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| !l.contains("XDG_RUNTIME_DIR") && !l.starts_with("stratus: adapter"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(
+        lines[0].contains("--size 8192x8192") && lines[0].contains("max_"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

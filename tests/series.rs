@@ -243,3 +243,221 @@ fn a_series_whose_step_maps_are_missing_is_refused() {
         assert_eq!(names_in(dir.path()), before, "nothing written");
     }
 }
+
+/// The two real steps ingested as a series into `dir`; its sidecar.
+fn ingested(dir: &Path) -> PathBuf {
+    let Some((f0, f6)) = steps() else {
+        unreachable!()
+    };
+    let o = ingest(&[&f0, &f6], &dir.join("na.png"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("na.json")
+}
+
+/// Rewrite the JSON file `path` through `edit`.
+fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+fn probe_series(map: &Path) -> std::process::Output {
+    stratus(&["probe", "--map", s(map), "--at", "50,-20"])
+}
+
+fn verify(map: &Path) -> std::process::Output {
+    stratus(&[
+        "verify-advection",
+        "--map",
+        s(map),
+        "--from",
+        "0",
+        "--to",
+        "6",
+    ])
+}
+
+/// Issue 28 #5: each step's own sidecar says which step it is; a series whose `map` entries
+/// were swapped would show +6 h at +0 h and advect +6 h onto +0 h.
+#[test]
+fn a_series_whose_map_entries_are_swapped_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = ingested(dir.path());
+    edit_json(&map, |v| {
+        let first = v["steps"][0]["map"].take();
+        v["steps"][0]["map"] = v["steps"][1]["map"].take();
+        v["steps"][1]["map"] = first;
+    });
+    for o in [probe_series(&map), verify(&map)] {
+        assert_refused(&o, &map, "step +0 h: ");
+        assert_refused(&o, &dir.path().join("na-f006.json"), "it is the +6 h step");
+    }
+    // The winds named for a step must be that step's too.
+    let dir = tempfile::tempdir().unwrap();
+    let map = ingested(dir.path());
+    let dir = dir.path();
+    edit_json(&map, |v| {
+        let first = v["steps"][0]["winds"].take();
+        v["steps"][0]["winds"] = v["steps"][1]["winds"].take();
+        v["steps"][1]["winds"] = first;
+    });
+    assert_refused(
+        &probe_series(&map),
+        &dir.join("na-f000.json"),
+        "wind images",
+    );
+}
+
+/// Issue 28 #12: steps are whole minutes after the run (so at least a minute apart), refused
+/// at series load and at ingest, one line naming the file.
+#[test]
+fn steps_less_than_a_minute_apart_are_refused() {
+    let Some((f0, _)) = steps() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let map = ingested(dir.path());
+    edit_json(&map, |v| {
+        v["steps"][1]["forecast_hour"] = 0.0002.into();
+        v["steps"][1]["valid_time"] = "2015-09-12T18:00:01Z".into();
+    });
+    for o in [probe_series(&map), verify(&map)] {
+        assert_refused(&o, &map, "not a whole number of minutes");
+    }
+    let o = stratus(&[
+        "render",
+        "--map",
+        s(&map),
+        "--time",
+        "2015-09-12T18:00:00Z",
+        "--camera",
+        "50,-20,9000",
+        "--size",
+        "16x9",
+        "--preset",
+        "fast",
+        "--out",
+        s(&dir.path().join("f.png")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.lines()
+            .any(|l| l.contains(s(&map)) && l.contains("not a whole number of minutes")),
+        "{err}"
+    );
+
+    // At ingest: the +0 h file beside a copy of it whose steps read 1 s (GRIB's unit of
+    // seconds), so the two are 1/3600 h apart.
+    let one_second = dir.path().join("f000-plus-1s.grib2");
+    std::fs::write(
+        &one_second,
+        with_step_in_seconds(&std::fs::read(&f0).unwrap(), 1),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let o = ingest(&[&f0, &one_second], &out.path().join("na.png"));
+    assert_refused(&o, &one_second, "not a whole number of minutes");
+    assert_eq!(names_in(out.path()), Vec::<String>::new());
+}
+
+/// `bytes` (a GRIB2 file) with every message's product definition (templates 4.0–4.15)
+/// stating its forecast time as `seconds` in GRIB's unit of seconds (code table 4.4: 13).
+fn with_step_in_seconds(bytes: &[u8], seconds: u32) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    let mut at = 0;
+    while let Some(k) = b[at..].windows(4).position(|w| w == b"GRIB") {
+        let start = at + k;
+        let total = u64::from_be_bytes(b[start + 8..start + 16].try_into().unwrap()) as usize;
+        let mut sec = start + 16;
+        while sec + 5 <= start + total && &b[sec..sec + 4] != b"7777" {
+            let len = u32::from_be_bytes(b[sec..sec + 4].try_into().unwrap()) as usize;
+            let template = u16::from_be_bytes([b[sec + 7], b[sec + 8]]);
+            if b[sec + 4] == 4 && template <= 15 {
+                b[sec + 17] = 13;
+                b[sec + 18..sec + 22].copy_from_slice(&seconds.to_be_bytes());
+            }
+            sec += len;
+        }
+        at = start + total;
+    }
+    b
+}
+
+/// Issue 28 #15: a series sidecar that is not JSON says so, with serde's line and column,
+/// not what a map sidecar would miss ("missing field rh_cr").
+#[test]
+fn a_series_that_is_not_json_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = ingested(dir.path());
+    let text = std::fs::read_to_string(&map).unwrap();
+    let broken = format!(
+        "{},\n}}\n",
+        text.trim_end().trim_end_matches('}').trim_end()
+    );
+    std::fs::write(&map, broken).unwrap();
+    for o in [probe_series(&map), verify(&map)] {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("missing field"), "{err}");
+        assert_refused(&o, &map, "not valid JSON");
+        assert!(err.contains(" line ") && err.contains(" column "), "{err}");
+    }
+}
+
+/// Run stratus with `args`, failing (after killing it) if it has not ended within 60 s.
+fn stratus_within(args: &[&str]) -> std::process::Output {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(args)
+        .env("RUST_LOG", "error")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(60) {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("stratus {args:?} still running after 60 s: it waits on a FIFO");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn mkfifo(path: &Path) {
+    std::fs::remove_file(path).ok();
+    let o = std::process::Command::new("mkfifo")
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "mkfifo: {o:?}");
+}
+
+/// Issue 28 #14: a FIFO given as `--map`, as a step's sidecar or as a map's PNG is refused at
+/// once (one line naming it), never waited on.
+#[cfg(unix)]
+#[test]
+fn fifos_among_a_maps_files_are_refused_not_waited_on() {
+    let Some((_, f6)) = steps() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.json");
+    mkfifo(&fifo);
+    let o = stratus_within(&["probe", "--map", s(&fifo), "--at", "50,-20"]);
+    assert_refused(&o, &fifo, "a FIFO (named pipe), not a regular file");
+
+    // A plain map whose PNG is a FIFO.
+    let one = dir.path().join("one");
+    std::fs::create_dir(&one).unwrap();
+    assert!(ingest(&[&f6], &one.join("m.png")).status.success());
+    mkfifo(&one.join("m.png"));
+    let o = stratus_within(&["probe", "--map", s(&one.join("m.json")), "--at", "50,-20"]);
+    assert_refused(&o, &one.join("m.png"), "FIFO");
+
+    // A series whose second step's sidecar is a FIFO.
+    let map = ingested(dir.path());
+    mkfifo(&dir.path().join("na-f006.json"));
+    let o = stratus_within(&["probe", "--map", s(&map), "--at", "50,-20"]);
+    assert_refused(&o, &dir.path().join("na-f006.json"), "FIFO");
+    assert!(String::from_utf8_lossy(&o.stderr).contains(s(&map)));
+}

@@ -606,7 +606,7 @@ fn open_checked(
             msg,
         })
     };
-    let f = fs::File::open(path).map_err(|e| PngFault::Other(IngestError::io(path, e)))?;
+    let f = crate::input::open_regular(path).map_err(PngFault::Other)?;
     let mut dec = png::Decoder::new_with_limits(
         std::io::BufReader::new(f),
         png::Limits {

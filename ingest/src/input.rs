@@ -1,6 +1,8 @@
 //! Reading inputs with a cap: no input may make stratus read (and hold) more than a valid file
 //! of its kind can be, whatever it is — a huge file, a pipe, `/dev/zero`. Limits are public
-//! constants, so the command line and the docs can name them.
+//! constants, so the command line and the docs can name them. A map's files (sidecars, PNGs)
+//! are only ever regular files ([`open_regular`]): a FIFO given as `--map` is refused, not
+//! waited on.
 
 use std::fs::File;
 use std::io::Read;
@@ -92,11 +94,79 @@ pub fn read_grib(path: &Path) -> Result<Vec<u8>> {
     Ok(buf)
 }
 
-/// Read a sidecar's text: at most [`MAX_SIDECAR_BYTES`], UTF-8.
+/// Open `path` for reading if it is a regular file; a FIFO, a device, a socket or a directory
+/// is refused before a byte is read. On Unix the open itself does not wait (`O_NONBLOCK`: a
+/// FIFO without a writer would otherwise block it forever) and the type is that of the file
+/// opened, so a swap between a check and the open cannot slip one through; reads of a regular
+/// file are unaffected by the flag.
+pub fn open_regular(path: &Path) -> Result<File> {
+    #[cfg(unix)]
+    let f = {
+        use rustix::fs::{open, Mode, OFlags};
+        let flags = OFlags::RDONLY | OFlags::NONBLOCK | OFlags::CLOEXEC;
+        File::from(open(path, flags, Mode::empty()).map_err(|e| IngestError::io(path, e.into()))?)
+    };
+    #[cfg(not(unix))]
+    let f = {
+        let m = std::fs::metadata(path).map_err(|e| IngestError::io(path, e))?;
+        if !m.is_file() {
+            return Err(not_regular(path, &m.file_type()));
+        }
+        File::open(path).map_err(|e| IngestError::io(path, e))?
+    };
+    let m = f.metadata().map_err(|e| IngestError::io(path, e))?;
+    if !m.is_file() {
+        return Err(not_regular(path, &m.file_type()));
+    }
+    Ok(f)
+}
+
+fn not_regular(path: &Path, t: &std::fs::FileType) -> IngestError {
+    let kind = crate::output::kind_of(t);
+    IngestError::io(
+        path,
+        std::io::Error::other(format!("it is {kind}, not a regular file")),
+    )
+}
+
+/// Read a sidecar's text: a regular file ([`open_regular`]) of at most [`MAX_SIDECAR_BYTES`],
+/// UTF-8, valid JSON (the error gives serde's line and column). A TIFF or PNG given where a
+/// sidecar belongs is named as such.
 pub fn read_sidecar_text(path: &Path) -> Result<String> {
-    let bytes = read_capped(path, MAX_SIDECAR_BYTES, "CloudMap sidecar")?;
-    String::from_utf8(bytes).map_err(|_| IngestError::BadCloudMap {
+    const WHAT: &str = "CloudMap sidecar";
+    let mut f = open_regular(path)?;
+    let size = f.metadata().map_err(|e| IngestError::io(path, e))?.len();
+    if size > MAX_SIDECAR_BYTES {
+        return Err(too_large(path, WHAT, MAX_SIDECAR_BYTES));
+    }
+    let mut bytes = Vec::new();
+    read_rest(&mut f, &mut bytes, path, MAX_SIDECAR_BYTES, WHAT)?;
+    let bad = |msg: String| IngestError::BadCloudMap {
         path: path.to_path_buf(),
-        msg: "sidecar is not UTF-8 text".into(),
-    })
+        msg,
+    };
+    let text = String::from_utf8(bytes).map_err(|e| {
+        bad(match image_kind(e.as_bytes()) {
+            Some(kind) => format!(
+                "{kind}, not a sidecar: a map is read from its JSON sidecar (MAP.json) or a series sidecar (NAME.json), which `stratus ingest --out MAP.png` writes"
+            ),
+            None => "sidecar is not UTF-8 text".into(),
+        })
+    })?;
+    // The syntax first: a typed parse stops at its first missing field, which in a file with
+    // a syntax error further on (or a series read as a map) names the wrong fault.
+    serde_json::from_str::<serde::de::IgnoredAny>(&text)
+        .map_err(|e| bad(format!("sidecar is not valid JSON: {e}")))?;
+    Ok(text)
+}
+
+/// What image file `bytes` begin as, if they begin as one a user may mistake for a map.
+fn image_kind(bytes: &[u8]) -> Option<&'static str> {
+    match bytes {
+        [b'I', b'I', 42 | 43, 0, ..] | [b'M', b'M', 0, 42 | 43, ..] => {
+            Some("it is a TIFF (a GeoTIFF map is for GIS; stratus does not read it back)")
+        }
+        [0x89, b'P', b'N', b'G', ..] => Some("it is a PNG image"),
+        _ => None,
+    }
 }

@@ -199,6 +199,65 @@ impl StructureGrid {
         ((self.north - lat) / self.dlat).clamp(0.0, (self.height.max(1) - 1) as f64)
     }
 
+    /// Near a pole the region reaches: the row of centres nearest that pole and how far `lat`
+    /// lies from those centres toward the pole (0 at them, 1 at the pole); `None` elsewhere.
+    /// Every pixel of that row neighbours the pole, so a point sample there blends toward the
+    /// row's mean by this weight: the pole is one point with one value, whatever the longitude
+    /// it is asked at, and the sample stays continuous on the way there.
+    pub fn pole_weight(&self, region: &Region, lat: f64) -> Option<(usize, f64)> {
+        const EPS: f64 = 1e-9;
+        let last = self.north - (self.height.max(1) - 1) as f64 * self.dlat;
+        let toward = |centre: f64, pole: f64, beyond: bool| -> Option<f64> {
+            if !beyond {
+                return None;
+            }
+            let gap = (pole - centre).abs();
+            Some(if gap < EPS {
+                1.0
+            } else {
+                ((lat - centre).abs() / gap).min(1.0)
+            })
+        };
+        if region.north >= 90.0 - EPS {
+            if let Some(t) = toward(self.north, 90.0, lat >= self.north - EPS) {
+                return Some((0, t));
+            }
+        }
+        if region.south <= -90.0 + EPS {
+            if let Some(t) = toward(last, -90.0, lat <= last + EPS) {
+                return Some((self.height.max(1) as usize - 1, t));
+            }
+        }
+        None
+    }
+
+    /// A point sample `near` (bilinear between centres) blended toward the mean of `f` over
+    /// its pole row by `pole` ([`pole_weight`](Self::pole_weight)); `f` gives pixel k's value
+    /// (row-major, this lattice's width), `None` where it has none. At the pole itself (weight
+    /// 1) the row's mean alone: one value, whatever the longitude.
+    pub fn toward_pole(
+        &self,
+        pole: Option<(usize, f64)>,
+        near: Option<f64>,
+        f: impl Fn(usize) -> Option<f64>,
+    ) -> Option<f64> {
+        let Some((row, t)) = pole else {
+            return near;
+        };
+        let w = self.width as usize;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for v in (row * w..(row + 1) * w).filter_map(&f) {
+            sum += v;
+            n += 1;
+        }
+        let mean = (n > 0).then(|| sum / n as f64);
+        match (near, mean) {
+            (Some(a), Some(b)) if t < 1.0 => Some(a * (1.0 - t) + b * t),
+            (a, b) if t < 0.5 => a.or(b),
+            (a, b) => b.or(a),
+        }
+    }
+
     /// Check it against the map: each side 1..= the map's, finite positive spacings, and pixels
     /// whose extents cover the region (so a reader never samples outside them).
     fn validate(&self, region: &Region, map: (u32, u32)) -> Result<(), String> {
@@ -221,12 +280,15 @@ impl StructureGrid {
         }
         for (name, v) in [("north", self.north), ("west", self.west)] {
             if !v.is_finite() {
-                return Err(format!("{what}.{name}: {v} is not a number"));
+                return Err(format!("{what}.{name}: {} is not a number", show_num(v)));
             }
         }
         for (name, v) in [("dlat", self.dlat), ("dlon", self.dlon)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{what}.{name}: {v} is not a positive spacing"));
+                return Err(format!(
+                    "{what}.{name}: {} is not a positive spacing",
+                    show_num(v)
+                ));
             }
         }
         let slack = 1e-6;
@@ -241,7 +303,12 @@ impl StructureGrid {
         {
             return Err(format!(
                 "{what}: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
-                self.width, self.height, self.north, self.west, self.dlat, self.dlon
+                self.width,
+                self.height,
+                show_num(self.north),
+                show_num(self.west),
+                show_num(self.dlat),
+                show_num(self.dlon)
             ));
         }
         Ok(())
@@ -395,7 +462,8 @@ impl CloudMapMeta {
             for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
                 if !ALTITUDE_RANGE_M.contains(&v) {
                     return Err(format!(
-                        "{at}.{name}: {v} m is outside {}..={} m",
+                        "{at}.{name}: {} m is outside {}..={} m",
+                        show_num(v),
                         ALTITUDE_RANGE_M.start(),
                         ALTITUDE_RANGE_M.end()
                     ));
@@ -404,7 +472,8 @@ impl CloudMapMeta {
             if l.base_m >= l.top_m {
                 return Err(format!(
                     "{at}: base_m {} m is not below top_m {} m",
-                    l.base_m, l.top_m
+                    show_num(l.base_m),
+                    show_num(l.top_m)
                 ));
             }
             crate::pipeline::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
@@ -413,17 +482,21 @@ impl CloudMapMeta {
                 ("max_coverage", l.max_coverage),
             ] {
                 if !(0.0..=1.0).contains(&v) {
-                    return Err(format!("{at}.{name}: {v} is outside 0..=1"));
+                    return Err(format!("{at}.{name}: {} is outside 0..=1", show_num(v)));
                 }
             }
             if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
-                return Err(format!("{at}.levels_hpa: {p} hPa is not a pressure"));
+                return Err(format!(
+                    "{at}.levels_hpa: {} hPa is not a pressure",
+                    show_num(*p)
+                ));
             }
             if let Some(st) = &l.structure {
                 for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
                     if !ALTITUDE_RANGE_M.contains(&v) {
                         return Err(format!(
-                            "{at}.structure.{name}: {v} m is outside {}..={} m",
+                            "{at}.structure.{name}: {} m is outside {}..={} m",
+                            show_num(v),
                             ALTITUDE_RANGE_M.start(),
                             ALTITUDE_RANGE_M.end()
                         ));
@@ -431,7 +504,10 @@ impl CloudMapMeta {
                 }
                 let fractions = st.sources.values().chain(st.types.values());
                 if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
-                    return Err(format!("{at}.structure: share {v} is outside 0..=1"));
+                    return Err(format!(
+                        "{at}.structure: share {} is outside 0..=1",
+                        show_num(*v)
+                    ));
                 }
             }
         }
@@ -444,7 +520,8 @@ impl CloudMapMeta {
             ] {
                 if !ALTITUDE_RANGE_M.contains(&v) {
                     return Err(format!(
-                        "ground.{name}: {v} m is outside {}..={} m",
+                        "ground.{name}: {} m is outside {}..={} m",
+                        show_num(v),
                         ALTITUDE_RANGE_M.start(),
                         ALTITUDE_RANGE_M.end()
                     ));
@@ -469,7 +546,7 @@ impl CloudMapMeta {
             ("grid_dj_deg", s.grid_dj_deg),
         ] {
             if !v.is_finite() {
-                return Err(format!("source.{name}: {v} is not a number"));
+                return Err(format!("source.{name}: {} is not a number", show_num(v)));
             }
         }
         Ok(())
@@ -595,6 +672,17 @@ pub fn parse_time(s: &str) -> Result<DateTime<Utc>, BadTime> {
             chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc())
         })
         .map_err(|_| BadTime(s.to_string()))
+}
+
+/// A number a user or a file gave, for a one-line message: as Rust writes it for ordinary
+/// magnitudes (up to 15 digits), in exponent form beyond them (`1e308`, not 309 digits;
+/// `1e-9`).
+pub fn show_num(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-6..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 /// A time as the sidecar stores it: RFC 3339, UTC, whole seconds, `Z` (`2011-01-15T12:00:00Z`).

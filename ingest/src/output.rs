@@ -91,7 +91,7 @@ pub fn check_output(path: &Path) -> Result<()> {
     }
 }
 
-fn kind_of(t: &fs::FileType) -> &'static str {
+pub(crate) fn kind_of(t: &fs::FileType) -> &'static str {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;

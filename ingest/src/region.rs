@@ -40,6 +40,7 @@ impl Region {
     }
 
     pub fn validate(&self) -> Result<(), IngestError> {
+        use crate::meta::show_num;
         let Region {
             south,
             north,
@@ -53,7 +54,9 @@ impl Region {
         }
         if !(-90.0..=90.0).contains(&south) || !(-90.0..=90.0).contains(&north) {
             return Err(IngestError::BadRegion(format!(
-                "latitudes must lie in [-90, 90], got south {south}, north {north}"
+                "latitudes must lie in [-90, 90], got south {}, north {}",
+                show_num(south),
+                show_num(north)
             )));
         }
         if south >= north {
@@ -63,7 +66,9 @@ impl Region {
         }
         if !(-180.0..=360.0).contains(&west) || !(-180.0..=360.0).contains(&east) {
             return Err(IngestError::BadRegion(format!(
-                "longitudes must lie in [-180, 360], got west {west}, east {east}"
+                "longitudes must lie in [-180, 360], got west {}, east {}",
+                show_num(west),
+                show_num(east)
             )));
         }
         if self.lon_span() <= 0.0 {

@@ -321,7 +321,10 @@ pub struct Probe {
 impl CloudMap {
     /// Per layer at (`lat`, `lon`): coverage (bilinear between the map's pixel centres),
     /// base/top (bilinear between the structure images' pixel centres, over those with a
-    /// value), type and source (nearest structure pixel). `None` outside the map's region. A
+    /// value), type and source (nearest structure pixel). Beyond the outer row of a pole the
+    /// region reaches, each blends toward that row's mean (type and source: its first pixel
+    /// from half-way on), so the pole answers the same at every longitude
+    /// ([`StructureGrid::pole_weight`]). `None` outside the map's region. A
     /// map without structure images (versions 1 and 2, synthetic maps) gives each layer its
     /// band, its band's source and its default type.
     pub fn probe(&self, lat: f64, lon: f64) -> Option<Probe> {
@@ -337,10 +340,18 @@ impl CloudMap {
         let x = pixel_coord(dlon / r.lon_span(), w);
         let y = pixel_coord((r.north - lat) / (r.north - r.south), h);
         let (cover, _) = taps(x, y, w, h);
+        // Near a pole the region reaches, toward the pole row's mean (one pole, one answer).
+        let own = StructureGrid::of_map(r, self.meta.width, self.meta.height);
+        let cover_pole = own.pole_weight(r, lat);
         let structure = self.structure.as_ref().filter(|s| s.is_whole()).map(|s| {
             let g = &s.grid;
             let (x, y) = (g.x(r, lon), g.y(lat));
-            (s, taps(x, y, g.width as usize, g.height as usize))
+            let pole = g.pole_weight(r, lat);
+            let (corners, mut nearest) = taps(x, y, g.width as usize, g.height as usize);
+            if let Some((row, _)) = pole.filter(|&(_, t)| t >= 0.5) {
+                nearest = row * g.width as usize;
+            }
+            (s, g, pole, (corners, nearest))
         });
         let layers = self
             .meta
@@ -348,13 +359,21 @@ impl CloudMap {
             .iter()
             .map(|l| {
                 let c = l.channel;
-                let coverage = blend(&cover, |k| Some(self.texels[k][c] as f64 / COVERAGE_FULL))
+                let texel = |k: usize| Some(self.texels[k][c] as f64 / COVERAGE_FULL);
+                let coverage = own
+                    .toward_pole(cover_pole, blend(&cover, texel), texel)
                     .unwrap_or(0.0);
                 let cloudy = coverage > 0.0;
                 let (base_m, top_m, cloud_type, source) = match &structure {
-                    Some((s, (corners, nearest))) => (
-                        blend(corners, |k| sample_to_altitude(s.base[k][c])),
-                        blend(corners, |k| sample_to_altitude(s.top[k][c])),
+                    Some((s, g, pole, (corners, nearest))) => (
+                        {
+                            let f = |k: usize| sample_to_altitude(s.base[k][c]);
+                            g.toward_pole(*pole, blend(corners, f), f)
+                        },
+                        {
+                            let f = |k: usize| sample_to_altitude(s.top[k][c]);
+                            g.toward_pole(*pole, blend(corners, f), f)
+                        },
                         CloudType::from_code(s.types[*nearest][c]),
                         unpack_source(s.types[*nearest][3], c)
                             .map_or(l.altitude_source, |p| p.altitude_source(l.altitude_source)),

@@ -149,7 +149,7 @@ fn every_field_of_a_multi_field_message_decodes() {
     assert!((mean_v - 0.0451).abs() < 1e-3, "{mean_v}");
     // The series files have one field a message; their v decodes on its own.
     for (f, n) in [("f000", 322), ("f006", 366)] {
-        let p = real(&format!("data/gfs-series/gfs.t18z.pgrb2.2p50.{f}")).unwrap();
+        let p = real(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{f}")).unwrap();
         let b = std::fs::read(&p).unwrap();
         let all = grib::scan(&b).unwrap();
         assert_eq!(all.len(), n);
@@ -230,7 +230,7 @@ fn base_and_top_come_from_gfs_then_the_rh_column() {
     assert!(low.wind);
     // An analysis has no cloud-layer fields: the RH column and the band only, and no
     // convective cloud, so no cumulonimbus from GFS's convection.
-    let f000 = real("data/gfs-series/gfs.t18z.pgrb2.2p50.f000").unwrap();
+    let f000 = real("gfs-series/gfs.t18z.pgrb2.2p50.f000").unwrap();
     let a = ingest(&f000, "30,65,-50,0", (200, 140), &dir.path().join("a.png"));
     for k in LayerKind::ALL {
         assert!(!sources(&a, k).contains(&AltitudeSource::GfsLayer), "{k:?}");
@@ -246,7 +246,7 @@ fn base_and_top_come_from_gfs_then_the_rh_column() {
 /// An RH-only file (one 0.25° level, all zero) still ingests: no cloud, the band, no type.
 #[test]
 fn an_rh_only_file_gives_the_band() {
-    let Some(rh) = real("data/gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2") else {
+    let Some(rh) = real("gfs/gfs.t18z.pgrb2.0p25.f186-RH.grib2") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -78,6 +78,38 @@ pub fn parse_numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> 
     }
 }
 
+/// Longitudes a point may be given at: either convention (−180..180, 0..360) and a turn
+/// beyond it either way, as the region's west..east may be written.
+pub const LON_LIMIT: f64 = 360.0;
+
+/// A point `LAT,LON` in degrees on the command line (`--at`, `--from`, `--to`, the first two
+/// parts of `--camera`): the one parser. The latitude within ±90, the longitude within
+/// ±[`LON_LIMIT`], both finite; the error names `flag` and the value.
+pub fn parse_lat_lon(s: &str, flag: &str) -> anyhow::Result<(f64, f64)> {
+    let v = parse_numbers(s, 2, flag)
+        .map_err(|_| anyhow::anyhow!("{flag} \"{s}\" must be LAT,LON in degrees"))?;
+    check_lat_lon(v[0], v[1], flag, s)?;
+    Ok((v[0], v[1]))
+}
+
+/// Check a point's latitude and longitude (finite, within ±90 and ±[`LON_LIMIT`]).
+fn check_lat_lon(lat: f64, lon: f64, flag: &str, s: &str) -> anyhow::Result<()> {
+    use stratus_ingest::meta::show_num;
+    if !(-90.0..=90.0).contains(&lat) {
+        anyhow::bail!(
+            "{flag} \"{s}\": latitude {} is outside -90..90",
+            show_num(lat)
+        );
+    }
+    if !(-LON_LIMIT..=LON_LIMIT).contains(&lon) {
+        anyhow::bail!(
+            "{flag} \"{s}\": longitude {} is outside -{LON_LIMIT}..{LON_LIMIT}",
+            show_num(lon)
+        );
+    }
+    Ok(())
+}
+
 /// A time on the command line: the sidecar's one parser (ISO 8601, without a zone read as UTC).
 pub fn parse_time(s: &str) -> anyhow::Result<DateTime<Utc>> {
     Ok(stratus_ingest::meta::parse_time(s)?)
@@ -182,6 +214,7 @@ pub fn parse_camera_spec(s: &str) -> anyhow::Result<(f64, f64, CameraAlt)> {
     };
     let num = |x: &str| x.parse::<f64>().ok().filter(|v| v.is_finite());
     let (lat, lon) = (num(lat).ok_or_else(bad)?, num(lon).ok_or_else(bad)?);
+    check_lat_lon(lat, lon, "--camera", s)?;
     let alt = match alt.strip_prefix("ground") {
         Some("") => CameraAlt::Ground(EYE_HEIGHT_M),
         Some(rest) => {
@@ -213,8 +246,18 @@ pub fn parse_camera(
         CameraAlt::Ground(n) => ground + n,
     };
     if alt_m < ground {
+        use stratus_ingest::meta::show_num;
+        // Whole metres, decimetres under one (a camera 0.3 m under is not "0 m below").
+        let m = |x: f64| match x.abs() {
+            a if a > 0.0 && a < 0.5 => format!("{:.1}", (x * 10.0).round() / 10.0 + 0.0),
+            a if a < 1e9 => format!("{:.0}", x.round() + 0.0),
+            _ => show_num(x),
+        };
         anyhow::bail!(
-            "--camera {s}: the camera at {alt_m} m is below the ground there ({ground:.0} m, {}); give an altitude above it, or LAT,LON,ground+N",
+            "--camera {s}: the camera at {} m is {} m below the ground there, which is at {} m ({}); give an altitude above it, or LAT,LON,ground+N",
+            m(alt_m),
+            m(ground - alt_m),
+            m(ground),
             match source {
                 GroundSource::Orography => "the map's terrain from the forecast's orography",
                 GroundSource::None => "sea level",

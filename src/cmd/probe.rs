@@ -9,7 +9,7 @@ use stratus_ingest::error::shown;
 use stratus_ingest::ground::GroundSource;
 use stratus_ingest::series::open_map;
 
-use super::options::{parse_numbers, parse_time};
+use super::options::{parse_lat_lon, parse_time};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -31,8 +31,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let v = parse_numbers(&a.at, 2, "--at")?;
-    let (lat, lon) = (v[0], v[1]);
+    let (lat, lon) = parse_lat_lon(&a.at, "--at")?;
     let time = a.time.as_deref().map(parse_time).transpose()?;
     let map = open_map(&a.map, time)?;
     let r = map.meta.region;

@@ -15,7 +15,7 @@ use stratus_ingest::error::shown;
 use stratus_ingest::region::parse_size;
 
 use super::files::{check_out, map_files};
-use super::options::{parse_numbers, LookOpts};
+use super::options::{parse_lat_lon, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -49,12 +49,12 @@ const GROUND: [u8; 3] = [120, 90, 60];
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     check_out(&a.out, &map_files(&a.map))?;
-    let from = parse_numbers(&a.from, 2, "--from")?;
-    let to = parse_numbers(&a.to, 2, "--to")?;
+    let from = parse_lat_lon(&a.from, "--from")?;
+    let to = parse_lat_lon(&a.to, "--to")?;
     let (w, h) = parse_size(&a.size)?;
     let map = a.look.open_map(&a.map)?;
     let settings = a.look.settings(&map, &a.map)?;
-    let (p0, p1) = (up_at(from[0], from[1]), up_at(to[0], to[1]));
+    let (p0, p1) = (up_at(from.0, from.1), up_at(to.0, to.1));
     let angle = p0.dot(p1).clamp(-1.0, 1.0).acos();
     if !(1e-7..std::f64::consts::PI - 1e-6).contains(&angle) {
         anyhow::bail!(
@@ -65,13 +65,21 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let top_m = match a.top_m {
         Some(t) if t.is_finite() && t > 0.0 && t <= 100_000.0 => t,
-        Some(t) => anyhow::bail!("--top-m {t}: must be an altitude in 0 < m ≤ 100000"),
+        Some(t) => anyhow::bail!(
+            "--top-m {}: must be an altitude in 0 < m ≤ 100000",
+            stratus_ingest::meta::show_num(t)
+        ),
         None => highest_top(&map) + 1000.0,
     };
     let columns: Vec<DVec3> = (0..w)
         .map(|i| slerp(p0, p1, angle, (i as f64 + 0.5) / w as f64))
         .collect();
-    let mut r = Renderer::new(a.look.gpu()?, &map);
+    let gpu = a.look.gpu()?;
+    // The device's limits before anything is allocated: a validation error after seconds of
+    // work is many lines naming no option.
+    stratus::render::section::check_fits(&gpu.device.limits(), w, h)
+        .map_err(|e| anyhow::anyhow!("--size {}: {e}", a.size))?;
+    let mut r = Renderer::new(gpu, &map);
     let sigma = r.section(&columns, h, top_m as f32, &settings)?;
     let mut img = image::RgbaImage::new(w, h);
     for (k, s) in sigma.iter().enumerate() {

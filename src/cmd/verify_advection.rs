@@ -12,7 +12,8 @@ use serde::Serialize;
 use stratus::score::{compare, MAP_THRESHOLD};
 use stratus_ingest::cloudmap::{CloudMap, COVERAGE_FULL};
 use stratus_ingest::error::shown;
-use stratus_ingest::meta::LayerKind;
+use stratus_ingest::meta::{show_num, LayerKind};
+use stratus_ingest::series::meta::show_hour;
 use stratus_ingest::series::{advect, Series};
 
 #[derive(clap::Args, Debug)]
@@ -51,14 +52,19 @@ fn mask(m: &CloudMap, c: usize) -> Vec<bool> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    if !(a.from.is_finite() && a.to.is_finite() && a.to > a.from) {
+    for (flag, h) in [("--from", a.from), ("--to", a.to)] {
+        if !h.is_finite() {
+            anyhow::bail!("{flag} {h}: a forecast hour is a finite number");
+        }
+    }
+    if a.to <= a.from {
         anyhow::bail!(
             "--to {} must be a later forecast hour than --from {}",
-            a.to,
-            a.from
+            show_num(a.to),
+            show_num(a.from)
         );
     }
-    if !stratus_ingest::series::is_series(&a.map) {
+    if !stratus_ingest::series::sidecar_is_series(&a.map)? {
         anyhow::bail!(
             "{}: not a series sidecar; give the NAME.json `stratus ingest` wrote for several steps",
             shown(&a.map)
@@ -68,8 +74,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let step = |h: f64| {
         series.step_at_hour(h).ok_or_else(|| {
             anyhow::anyhow!(
-                "{}: no step at +{h} h; the series has {}",
+                "{}: no step at {}; the series has {}",
                 shown(&a.map),
+                show_hour(h),
                 series.hours_text()
             )
         })
@@ -98,11 +105,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     out!(
-        "{}: +{} h carried to +{} h with its layer winds vs the +{} h step (Dice, coverage > {})",
+        "{}: {} carried to {} with its layer winds vs the {} step (Dice, coverage > {})",
         shown(&a.map),
-        a.from,
-        a.to,
-        a.to,
+        show_hour(a.from),
+        show_hour(a.to),
+        show_hour(a.to),
         MAP_THRESHOLD
     )?;
     out!("{:<7} {:>9} {:>12}", "layer", "advected", "persistence")?;

@@ -74,23 +74,28 @@ impl Camera {
 
     /// Reject what cannot be rendered: below the ground, non-finite, no view direction, bad fov.
     pub fn validate(&self) -> Result<(), RenderError> {
+        use stratus_ingest::meta::show_num;
         let bad = |m: String| Err(RenderError::BadCamera(m));
         if !(self.lat_deg.is_finite() && self.lon_deg.is_finite() && self.alt_m.is_finite()) {
             return bad("position is not a finite number".into());
         }
         if !(-90.0..=90.0).contains(&self.lat_deg) {
-            return bad(format!("latitude {} is outside -90..90", self.lat_deg));
+            return bad(format!(
+                "latitude {} is outside -90..90",
+                show_num(self.lat_deg)
+            ));
         }
         if self.alt_m < 0.0 {
             return bad(format!(
                 "altitude {} m is below the ground (sea level is 0)",
-                self.alt_m
+                show_num(self.alt_m)
             ));
         }
         if self.alt_m > MAX_ALTITUDE_M {
             return bad(format!(
                 "altitude {} m is above the {} m limit",
-                self.alt_m, MAX_ALTITUDE_M
+                show_num(self.alt_m),
+                show_num(MAX_ALTITUDE_M)
             ));
         }
         let len = self.forward_enu.length();
@@ -103,7 +108,7 @@ impl Camera {
         if !(self.fov_deg > 0.5 && self.fov_deg < 170.0) {
             return bad(format!(
                 "field of view {}° is outside 0.5..170",
-                self.fov_deg
+                show_num(self.fov_deg)
             ));
         }
         Ok(())

@@ -45,6 +45,51 @@ pub fn bindings() -> Vec<Binding> {
         .collect()
 }
 
+/// Bytes of one section sample (its extinction, f32) and of one column direction (vec4<f32>).
+const SAMPLE_BYTES: u64 = 4;
+const COLUMN_BYTES: u64 = 16;
+
+/// Whether a `width`×`height` section fits the device's `limits`, checked before anything is
+/// allocated: its samples are one storage buffer, bound whole and read back whole (so at most
+/// the smaller of `max_storage_buffer_binding_size` and `max_buffer_size`), its column
+/// directions another, and its dispatch `width/8`×`height/8` workgroups. The error names the
+/// limit and the most rows that fit at this width.
+pub fn check_fits(limits: &wgpu::Limits, width: u32, height: u32) -> Result<(), String> {
+    let mib = |b: u64| format!("{:.0} MiB", b as f64 / (1u64 << 20) as f64);
+    let (binding, buffer) = (
+        limits.max_storage_buffer_binding_size,
+        limits.max_buffer_size,
+    );
+    let (cap, name) = if binding <= buffer {
+        (binding, "max_storage_buffer_binding_size")
+    } else {
+        (buffer, "max_buffer_size")
+    };
+    let samples = width as u64 * height as u64 * SAMPLE_BYTES;
+    if samples > cap {
+        let rows = cap / (width as u64 * SAMPLE_BYTES);
+        return Err(format!(
+            "the section's {width}×{height} samples take {} in one storage buffer; this adapter allows {} ({name}): at {width} columns at most {rows} rows",
+            mib(samples),
+            mib(cap)
+        ));
+    }
+    if width as u64 * COLUMN_BYTES > cap {
+        return Err(format!(
+            "{width} columns take {} in one storage buffer; this adapter allows {} ({name})",
+            mib(width as u64 * COLUMN_BYTES),
+            mib(cap)
+        ));
+    }
+    let groups = limits.max_compute_workgroups_per_dimension;
+    if width.div_ceil(8) > groups || height.div_ceil(8) > groups {
+        return Err(format!(
+            "the section's {width}×{height} samples need more than this adapter's {groups} workgroups a dimension (max_compute_workgroups_per_dimension, 8 samples each)"
+        ));
+    }
+    Ok(())
+}
+
 pub struct SectionPass {
     pipelines: StagePipelines,
     layout: wgpu::BindGroupLayout,

@@ -17,7 +17,8 @@
 //! **centres** on a lat/lon lattice: texel (i, j) (row 0 north, column 0 west) is the value at
 //! latitude `north − j·dlat`, longitude `west + i·dlon`. Between centres values are bilinear;
 //! outside the outer centres (at most half a texel, inside the region) they are clamped to the
-//! edge texel. On a GPU this is a texture sampled with linear filtering and clamp-to-edge at
+//! edge texel, except toward a pole the region reaches, where the CPU sample blends toward the
+//! edge row's mean so the pole has one value at every longitude. On a GPU this is a texture sampled with linear filtering and clamp-to-edge at
 //! texture coordinates `((i + 0.5)/width, (j + 0.5)/height)` for texel (i, j); from the map's
 //! region uv (u = 0 west edge … 1 east edge, v = 0 north edge … 1 south edge) the texture
 //! coordinate is `uv × scale + offset` with [`Ground::texture_transform`].
@@ -172,7 +173,9 @@ impl Ground {
     }
 
     /// The ground at (`lat`, `lon`): bilinear between the lattice's texel centres, clamped to
-    /// the outer ones (module doc). `None` outside the map's region or for a non-finite point.
+    /// the outer ones (module doc); beyond the outer row of a pole the region reaches, blended
+    /// toward that row's mean, so the pole has one value ([`StructureGrid::pole_weight`]).
+    /// `None` outside the map's region or for a non-finite point.
     pub fn at(&self, lat: f64, lon: f64) -> Option<GroundSample> {
         let r = &self.region;
         if !(lat.is_finite() && lon.is_finite()) || lat < r.south || lat > r.north {
@@ -193,7 +196,13 @@ impl Ground {
             (j1 * w + i0, (1.0 - tx) * ty),
             (j1 * w + i1, tx * ty),
         ];
-        let f = |v: &[f32]| taps.iter().map(|&(k, wt)| v[k] as f64 * wt).sum::<f64>();
+        // Near a pole the region reaches, toward the pole row's mean (one pole, one answer).
+        let pole = g.pole_weight(r, lat);
+        let f = |v: &[f32]| {
+            let near = taps.iter().map(|&(k, wt)| v[k] as f64 * wt).sum::<f64>();
+            g.toward_pole(pole, Some(near), |k| Some(v[k] as f64))
+                .unwrap_or(near)
+        };
         let snow = f(&self.snow_kg_m2);
         Some(GroundSample {
             height_m: f(&self.height_m),

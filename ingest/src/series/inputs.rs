@@ -11,7 +11,7 @@ use crate::error::{IngestError, Result};
 use crate::grib::{self, LatLonGrid};
 use crate::meta::format_time;
 
-use super::meta::show_hour;
+use super::meta::{show_hour, step_hour_fault};
 
 /// What one input file holds, from its headers.
 #[derive(Debug, Clone)]
@@ -110,7 +110,8 @@ fn describe_grid(g: &LatLonGrid) -> String {
 }
 
 /// The steps `files` (in the order given) make, or the first reason they do not make one
-/// series: a grid or run other than the first file's, a step twice, steps out of order.
+/// series: a grid or run other than the first file's, a step that is not whole minutes after
+/// the run ([`step_hour_fault`]), a step twice, steps out of order.
 pub fn series_steps(files: &[InputFile]) -> Result<Vec<StepSource>> {
     let Some(first) = files.first() else {
         return Err(IngestError::BadMap("no forecast files given".into()));
@@ -149,6 +150,12 @@ pub fn series_steps(files: &[InputFile]) -> Result<Vec<StepSource>> {
             })
         })
         .collect();
+    if let Some((s, fault)) = steps
+        .iter()
+        .find_map(|s| Some((s, step_hour_fault(s.hour)?)))
+    {
+        return Err(IngestError::series(&s.path, format!("step {fault}")));
+    }
     for (k, s) in steps.iter().enumerate() {
         if let Some(o) = steps[..k].iter().find(|o| (o.hour - s.hour).abs() < 1e-6) {
             let also = if o.path == s.path {

@@ -60,6 +60,30 @@ pub struct StepWinds {
     pub v: String,
 }
 
+/// Steps are whole minutes after the run, so two steps are at least a minute apart. GRIB
+/// can state steps in seconds, but forecasts are written hours apart (GFS: 1 h to 120 h, then
+/// 3 h) and the finest sub-hourly ones in minutes (HRRR: 15 min); a step a fraction of a
+/// second after another is a damaged file, and an interval that short has nothing to blend
+/// and valid times (whole seconds) that may round together.
+pub const STEP_UNIT_MINUTES: f64 = 1.0;
+
+/// Whether `hour` is a whole number of minutes (to a few milliseconds).
+pub fn is_whole_minutes(hour: f64) -> bool {
+    let m = hour * 60.0 / STEP_UNIT_MINUTES;
+    (m - m.round()).abs() < 1e-4
+}
+
+/// Why `hour` is not a step a series may hold, if it is not one (a phrase after its name).
+pub fn step_hour_fault(hour: f64) -> Option<String> {
+    (!is_whole_minutes(hour)).then(|| {
+        format!(
+            "{} ({} s after the run) is not a whole number of minutes; steps are whole minutes after the run, at least a minute apart",
+            show_hour(hour),
+            crate::meta::show_num((hour * 3600.0 * 1000.0).round() / 1000.0)
+        )
+    })
+}
+
 /// A name that stays in the sidecar's folder.
 pub(crate) fn is_plain_name(name: &str) -> bool {
     let p = Path::new(name);
@@ -111,23 +135,26 @@ impl SeriesMeta {
             if !(s.forecast_hour.is_finite() && (0.0..=100_000.0).contains(&s.forecast_hour)) {
                 return Err(format!(
                     "{at}.forecast_hour: {} is not a forecast hour",
-                    s.forecast_hour
+                    crate::meta::show_num(s.forecast_hour)
                 ));
+            }
+            if let Some(fault) = step_hour_fault(s.forecast_hour) {
+                return Err(format!("{at}.forecast_hour: {fault}"));
             }
             if i > 0 && s.forecast_hour <= self.steps[i - 1].forecast_hour {
                 return Err(format!(
-                    "{at}.forecast_hour: +{} h does not follow +{} h (steps go in increasing hour, each once)",
-                    s.forecast_hour,
-                    self.steps[i - 1].forecast_hour
+                    "{at}.forecast_hour: {} does not follow {} (steps go in increasing hour, each once)",
+                    show_hour(s.forecast_hour),
+                    show_hour(self.steps[i - 1].forecast_hour)
                 ));
             }
             let expected = crate::grib::info::after_step(self.reference_time, s.forecast_hour);
             if (s.valid_time - expected).num_seconds().abs() > 1 {
                 return Err(format!(
-                    "{at}.valid_time: {} is not the run's {} + {} h",
+                    "{at}.valid_time: {} is not the run's {} {}",
                     crate::meta::format_time(&s.valid_time),
                     crate::meta::format_time(&self.reference_time),
-                    s.forecast_hour
+                    show_hour(s.forecast_hour)
                 ));
             }
             if !is_plain_name(&s.map) {
@@ -177,12 +204,17 @@ pub fn hour_tag(hour: f64) -> String {
     }
 }
 
-/// A forecast hour as people write it: `+6 h`, `+1.5 h`.
+/// A forecast hour as people write it: `+6 h`, `+1.5 h`, `+0.000278 h`.
 pub fn show_hour(hour: f64) -> String {
-    if (hour - hour.round()).abs() < 1e-9 {
-        format!("+{} h", hour.round() as i64)
+    let sign = if hour < 0.0 { "-" } else { "+" };
+    let h = hour.abs();
+    if !(h.is_finite() && h < 1e7) {
+        format!("{sign}{} h", crate::meta::show_num(h))
+    } else if (h - h.round()).abs() < 1e-9 {
+        format!("{sign}{} h", h.round() as i64)
     } else {
-        format!("+{hour} h")
+        let t = format!("{h:.6}");
+        format!("{sign}{} h", t.trim_end_matches('0').trim_end_matches('.'))
     }
 }
 
@@ -238,6 +270,13 @@ mod tests {
         bad.steps[1].forecast_hour = 0.0;
         assert!(bad.validate().unwrap_err().contains("does not follow"));
         let mut bad = m.clone();
+        bad.steps[1].forecast_hour = 0.0002;
+        bad.steps[1].valid_time = crate::grib::info::after_step(bad.reference_time, 0.0002);
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("steps[1].forecast_hour: +0.0002 h (0.72 s after the run) is not a whole number of minutes"));
+        let mut bad = m.clone();
         bad.steps[1].map = "../x.json".into();
         assert!(bad.validate().unwrap_err().contains("steps[1].map"));
         let mut bad = m.clone();
@@ -259,5 +298,8 @@ mod tests {
         assert_eq!(hour_tag(1.5), "f001p50");
         assert_eq!(show_hour(6.0), "+6 h");
         assert_eq!(show_hour(1.5), "+1.5 h");
+        assert_eq!(show_hour(1.0 / 3600.0), "+0.000278 h");
+        assert!(is_whole_minutes(0.25) && is_whole_minutes(1.0 / 60.0));
+        assert!(!is_whole_minutes(0.0002));
     }
 }

@@ -8,6 +8,7 @@
 //! when a moment needs them, so a long series costs two maps of memory.
 
 pub mod advect;
+pub mod check;
 pub mod inputs;
 pub mod meta;
 pub mod write;
@@ -35,15 +36,21 @@ pub struct Series {
 /// Whether `path` is a series sidecar (its `format` says so). A file that cannot be read or
 /// parsed is not one: the map loader then reports what is wrong with it.
 pub fn is_series(path: &Path) -> bool {
+    sidecar_is_series(path).unwrap_or(false)
+}
+
+/// Whether the sidecar `path` is a series sidecar; an error when it is no sidecar at all (not
+/// a regular file, unreadable, not JSON: [`crate::input::read_sidecar_text`]).
+pub fn sidecar_is_series(path: &Path) -> Result<bool> {
     #[derive(serde::Deserialize)]
     struct Peek {
-        format: Option<String>,
+        format: Option<serde_json::Value>,
     }
-    crate::input::read_sidecar_text(path)
+    let text = crate::input::read_sidecar_text(path)?;
+    Ok(serde_json::from_str::<Peek>(&text)
         .ok()
-        .and_then(|t| serde_json::from_str::<Peek>(&t).ok())
         .and_then(|p| p.format)
-        .is_some_and(|f| f == SERIES_FORMAT)
+        .is_some_and(|f| f == SERIES_FORMAT))
 }
 
 /// The map a `--map` argument names at `time`: a series' moment ([`Series::at`]; its first
@@ -74,9 +81,10 @@ pub fn map_files(path: &Path) -> Vec<PathBuf> {
 }
 
 impl Series {
-    /// Read and check the series sidecar `path` and each step's sidecar: present, valid, of the
-    /// series' region, size and layers, its PNG and structure images present. The first fault
-    /// is one error naming the series sidecar, the step and the file.
+    /// Read and check the series sidecar `path` and each step's sidecar: present, valid, the
+    /// step the series entry says it is and of the series' run, region, size and layers
+    /// ([`check::step_fault`]), its PNG and structure images present. The first fault is one
+    /// error naming the series sidecar, the step and the file.
     pub fn load(path: &Path) -> Result<Series> {
         let text = crate::input::read_sidecar_text(path)?;
         let meta: SeriesMeta = serde_json::from_str(&text)
@@ -94,19 +102,8 @@ impl Series {
             };
             let sidecar = dir.join(&s.map);
             let m = load_meta(&sidecar).map_err(|e| at(e.to_string()))?;
-            if m.region != meta.region || (m.width, m.height) != (meta.width, meta.height) {
-                return Err(at(format!(
-                    "{}: its region or size is not the series'",
-                    shown(&sidecar)
-                )));
-            }
-            let kinds: Vec<_> = m.layers.iter().map(|l| l.kind).collect();
-            let want: Vec<_> = meta.layers.iter().map(|l| l.kind).collect();
-            if kinds != want {
-                return Err(at(format!(
-                    "{}: its layers are not the series'",
-                    shown(&sidecar)
-                )));
+            if let Some(fault) = check::step_fault(&meta, s, &m, step_metas.first()) {
+                return Err(at(format!("{}: {fault}", shown(&sidecar))));
             }
             let mut images = vec![m.image_path(&sidecar)];
             images.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
@@ -116,8 +113,18 @@ impl Series {
             if let Some(w) = &s.winds {
                 images.extend([dir.join(&w.u), dir.join(&w.v)]);
             }
-            if let Some(missing) = images.iter().find(|p| !p.is_file()) {
-                return Err(at(format!("{}: missing", shown(missing))));
+            for p in &images {
+                match std::fs::metadata(p) {
+                    Ok(m) if m.is_file() => {}
+                    Ok(m) => {
+                        let kind = crate::output::kind_of(&m.file_type());
+                        return Err(at(format!(
+                            "{}: it is {kind}, not a regular file",
+                            shown(p)
+                        )));
+                    }
+                    Err(_) => return Err(at(format!("{}: missing", shown(p)))),
+                }
             }
             step_metas.push(m);
         }

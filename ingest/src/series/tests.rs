@@ -35,6 +35,9 @@ fn blob_map(lat: f64, lon: f64, (u, v): (f64, f64), valid: DateTime<Utc>) -> Clo
         let c = (1.5 - d).clamp(0.0, 0.3) / 0.3;
         [0.6 * c, 0.0, c]
     });
+    // A step of the t0 run, as its sidecar records it (Series::load compares them).
+    m.meta.source.reference_time = Some(t0());
+    m.meta.source.forecast_step_h = (valid - t0()).num_seconds() as f64 / 3600.0;
     let grid = StructureGrid::of_map(&region(), 20, 10);
     let n = 200;
     m.structure = Some(MapStructure {
@@ -194,6 +197,13 @@ fn files_that_are_not_one_series_are_named() {
         run.starts_with("b: it is of the 2015-09-13T00:00:00Z run"),
         "{run}"
     );
+    let close = e(&[input("a", 0, &[0.0], 144), input("b", 0, &[0.0002], 144)]);
+    assert!(
+        close.starts_with(
+            "b: step +0.0002 h (0.72 s after the run) is not a whole number of minutes"
+        ),
+        "{close}"
+    );
     let dup = e(&[input("a", 0, &[6.0], 144), input("b", 0, &[6.0], 144)]);
     assert_eq!(dup, "b: step +6 h is duplicated (also in a)");
     let order = e(&[
@@ -261,6 +271,18 @@ fn a_series_loads_blends_between_steps_and_refuses_missing_maps() {
         Some(t0() + chrono::Duration::hours(3))
     );
     assert_eq!(open_map(&path, None).unwrap().texels, maps[0].texels);
+
+    // Entries swapped: each step's own sidecar says which step it is.
+    let mut swapped = meta.clone();
+    let (a, b) = (swapped.steps[0].map.clone(), swapped.steps[1].map.clone());
+    (swapped.steps[0].map, swapped.steps[1].map) = (b, a);
+    let other = dir.path().join("swapped.json");
+    std::fs::write(&other, serde_json::to_string_pretty(&swapped).unwrap()).unwrap();
+    let e = Series::load(&other).unwrap_err().to_string();
+    assert!(
+        e.contains("swapped.json: step +0 h:") && e.contains("it is the +6 h step"),
+        "{e}"
+    );
 
     std::fs::remove_file(dir.path().join("s-f006.png")).unwrap();
     let e = Series::load(&path).unwrap_err().to_string();
