@@ -1413,3 +1413,26 @@ fn an_interrupt_before_the_first_range_removes_what_the_run_created() {
         }
     }
 }
+
+/// A level the inventory lacks: the error lists every level it has (the list was cut at 12 with
+/// no mark, so 850 hPa and the levels below it were hidden).
+#[test]
+fn an_absent_level_lists_every_level_there_is() {
+    let (_d, root) = tree();
+    let server = Server::start(&root, Faults::default());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = fetch(
+        &server,
+        &out,
+        &["--step", "6", "--fields", "r", "--levels", "15"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("it has it at"), "{err}");
+    for level in ["10 mb", "100 mb", "500 mb", "850 mb", "1000 mb"] {
+        assert!(err.contains(&format!(" {level}")), "{level} missing: {err}");
+    }
+    assert!(!err.contains('…'), "{err}");
+}

@@ -251,13 +251,12 @@ pub fn pick(
             continue;
         }
         if found.is_empty() {
-            let has: Vec<&str> = inventory
-                .iter()
-                .flat_map(|m| &m.lines)
-                .filter(|l| l.name == f.ncep)
-                .map(|l| l.level.as_str())
-                .take(12)
-                .collect();
+            let mut has: Vec<&str> = Vec::new();
+            for l in inventory.iter().flat_map(|m| &m.lines) {
+                if l.name == f.ncep && !has.contains(&l.level.as_str()) {
+                    has.push(&l.level);
+                }
+            }
             return Err(if has.is_empty() {
                 format!("the inventory has no {} ({})", f.ncep, f.asked)
             } else {
@@ -269,7 +268,7 @@ pub fn pick(
                         LevelMatch::Isobaric => levels.describe(),
                         LevelMatch::Named(l) => l.join(", "),
                     },
-                    has.join(", ")
+                    levels_listed(&has)
                 )
             });
         }
@@ -297,6 +296,22 @@ pub fn pick(
         .cloned()
         .collect())
 }
+
+/// Every level of a list, or the first [`LISTED_LEVELS`] and how many more (a hostile inventory
+/// may hold thousands): a cut list says that it is cut.
+fn levels_listed(levels: &[&str]) -> String {
+    if levels.len() <= LISTED_LEVELS {
+        return levels.join(", ");
+    }
+    format!(
+        "{}, … and {} more",
+        levels[..LISTED_LEVELS].join(", "),
+        levels.len() - LISTED_LEVELS
+    )
+}
+
+/// GFS writes a parameter at up to 41 isobaric levels (0.25°): all of them are listed.
+const LISTED_LEVELS: usize = 48;
 
 #[cfg(test)]
 mod tests {
