@@ -1,5 +1,6 @@
 //! `stratus render` (and `flight`) at the extremes issue 28 found, through the binary: the sky
-//! before dawn under `--exposure auto` (it was drawn as saturated colour bands).
+//! before dawn under `--exposure auto` (it was drawn as saturated colour bands), and a series of
+//! 1 000 steps (every step map was decoded to open it).
 
 mod common;
 use common::{sample, stratus};
@@ -195,4 +196,51 @@ fn a_flight_before_dawn_adapts_without_saturating() {
     for p in &pngs {
         assert_pre_dawn(&rgb(p), &p.display().to_string());
     }
+}
+
+/// The `render --timings` line "series: D of N step maps decoded": D.
+fn decoded(stdout: &str) -> usize {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("series: "))
+        .unwrap_or_else(|| panic!("no series line in {stdout}"));
+    line["series: ".len()..]
+        .split(' ')
+        .next()
+        .and_then(|d| d.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"))
+}
+
+#[test]
+fn a_long_series_costs_a_frame_the_two_steps_around_its_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let real = southern_series(dir.path(), "south", "32x32");
+    let long = common::series::repeated(&real, "long", 1000, 1.0, true);
+    let out = |name: &str| dir.path().join(format!("{name}.png"));
+    let timed = ["--timings"];
+
+    // The 2-step series and the 1 000-step one, late in it (the drift integrates the winds of
+    // the 900 steps before): two step maps decoded either way.
+    let two = render_east(&real, "2015-09-12T21:00:00Z", "32x18", &out("two"), &timed);
+    assert_eq!(decoded(&two), 2, "{two}");
+    let late = "2015-10-20T06:30:00Z"; // +900.5 h
+    let d = decoded(&render_east(&long, late, "32x18", &out("long"), &timed));
+    assert_eq!(
+        d, 2,
+        "a 1000-step series decoded {d} step maps for one frame"
+    );
+
+    // A series sidecar written before the means were recorded still renders, the same picture:
+    // the means of the steps up to the moment come from their maps (decoded for it).
+    let old = common::series::repeated(&real, "old", 1000, 1.0, false);
+    let early = "2015-09-12T20:30:00Z"; // +2.5 h: steps 2 and 3 around it
+    let with = render_east(&long, early, "32x18", &out("with"), &timed);
+    let without = render_east(&old, early, "32x18", &out("without"), &timed);
+    assert_eq!(decoded(&with), 2, "{with}");
+    assert_eq!(decoded(&without), 4, "{without}");
+    assert_eq!(
+        rgb(&out("with")).into_raw(),
+        rgb(&out("without")).into_raw(),
+        "recorded and decoded mean winds drift the noise alike"
+    );
 }

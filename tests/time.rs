@@ -43,29 +43,10 @@ fn real_series(dir: &Path, size: &str) -> Option<PathBuf> {
     Some(dir.join("na.json"))
 }
 
-/// A synthetic series of `n` steps 6 h apart beside the real one: +0 h, +6 h, +0 h, … maps.
+/// A synthetic series of `n` steps 6 h apart beside the real one: +0 h, +6 h, +0 h, … maps,
+/// each step with its own step sidecar.
 fn synthetic_series(real: &Path, n: usize) -> PathBuf {
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(real).unwrap()).unwrap();
-    let steps = v["steps"].as_array().unwrap().clone();
-    let t0 = DateTime::parse_from_rfc3339(v["reference_time"].as_str().unwrap())
-        .unwrap()
-        .with_timezone(&Utc);
-    let new: Vec<serde_json::Value> = (0..n)
-        .map(|k| {
-            let mut s = steps[k % 2].clone();
-            s["forecast_hour"] = (6.0 * k as f64).into();
-            s["valid_time"] = (t0 + Duration::hours(6 * k as i64))
-                .format("%Y-%m-%dT%H:%M:%SZ")
-                .to_string()
-                .into();
-            s
-        })
-        .collect();
-    v["steps"] = new.into();
-    let path = real.with_file_name(format!("synthetic-{n}-steps.json"));
-    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-    path
+    common::series::repeated(real, &format!("synthetic-{n}-steps"), n, 6.0, true)
 }
 
 fn settings(time: DateTime<Utc>) -> Settings {
@@ -92,7 +73,7 @@ fn the_gpu_blend_matches_the_cpu_blend_half_way() {
         let mut s = settings(t);
         s.layers_on = on;
         // One streak direction for the three renders: the comparison is of the coverage.
-        s.streak_wind = Some(stratus::timeline::mean_winds(&a));
+        s.streak_wind = Some(stratus_ingest::series::winds::map_mean_wind(&a));
         r.render(&View::TopDown, w, h, &s).unwrap().alpha()
     };
     for (name, on) in [

@@ -10,6 +10,7 @@
 pub mod advect;
 pub mod inputs;
 pub mod meta;
+pub mod winds;
 pub mod write;
 
 use std::path::{Path, PathBuf};
