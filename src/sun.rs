@@ -28,7 +28,7 @@ pub struct Sky {
 }
 
 /// Full-moon irradiance relative to the overhead Sun's (about 0.25 lux against 100 000 lux).
-const MOON_TO_SUN: f64 = 2.5e-6;
+pub const MOON_TO_SUN: f64 = 2.5e-6;
 
 /// Days since J2000.0 (2000-01-01 12:00 UTC).
 fn days_since_j2000(t: DateTime<Utc>) -> f64 {

@@ -8,14 +8,22 @@
 //! boundaries: the noise never jumps. One rigid offset per layer (not per pixel) keeps the
 //! noise from shearing apart over hours where the wind varies; the coverage itself moves with
 //! the per-pixel winds (render::blend).
+//!
+//! Opening a series costs what its moment needs, whatever the series' length: the step maps
+//! around the moment are the only ones decoded, the means come from the series sidecar
+//! (`stratus_ingest::series::winds`). An older sidecar without them has each needed step's mean
+//! taken from its map (decoded once, from the first step to the moment's interval).
 
 use std::path::Path;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::Result;
 use stratus_ingest::series::meta::show_hour;
+use stratus_ingest::series::winds::map_mean_wind;
 use stratus_ingest::series::{is_series, Series};
 
 use crate::render::{RenderError, Renderer};
@@ -35,8 +43,11 @@ pub enum TimelineError {
 
 pub struct Timeline {
     pub series: Series,
-    /// Each step's valid time and region-mean layer winds.
-    means: Vec<(DateTime<Utc>, PerLayer)>,
+    /// Each step's valid time and region-mean layer winds: from the series sidecar, else
+    /// filled in as the steps are decoded ([`Timeline::prepare`] fills those it needs).
+    means: Vec<(DateTime<Utc>, Option<PerLayer>)>,
+    /// The step map [`open_scene`] decoded, kept for [`Timeline::prepare`].
+    opened: Option<(usize, CloudMap)>,
     /// The interval held on the GPU (steps k, k + 1) and the later step's map, which becomes
     /// the earlier one of the next interval.
     held: Option<(usize, CloudMap)>,
@@ -44,19 +55,18 @@ pub struct Timeline {
     ahead: Option<(usize, JoinHandle<Result<CloudMap>>)>,
     /// Intervals uploaded so far (a test counts them).
     pub uploads: u32,
-}
-
-/// Region-mean wind of each layer of `map` (zero without winds).
-pub fn mean_winds(map: &CloudMap) -> PerLayer {
-    map.structure
-        .as_ref()
-        .filter(|s| s.is_whole())
-        .map_or([[0.0; 2]; 3], crate::render::structure::mean_wind)
+    /// Whether the step after the held pair is loaded ahead (time runs on: fly, flight); a
+    /// single frame (`render`) turns it off.
+    pub load_ahead: bool,
+    /// Step maps decoded so far, the loader thread's included (`render --timings` prints it).
+    decoded: Arc<AtomicU32>,
 }
 
 /// Step `k` of `series`, its valid time and step the series' (a map may serve several steps
-/// of a synthetic series).
-fn load_step(series: &Series, k: usize) -> Result<CloudMap> {
+/// of a synthetic series). Counted in `decoded`.
+fn load_step(series: &Series, k: usize, decoded: &AtomicU32) -> Result<CloudMap> {
+    decoded.fetch_add(1, Ordering::Relaxed);
+    tracing::debug!("decoding step {k} of {}", series.path.display());
     let mut m = series.step_map(k)?;
     let s = &series.steps()[k];
     m.meta.source.valid_time = Some(s.valid_time);
@@ -76,7 +86,7 @@ pub fn open_scene(
     if !is_series(path) {
         return Ok((CloudMap::load(path)?, None));
     }
-    let tl = Timeline::open(path)?;
+    let mut tl = Timeline::open(path)?;
     let k = match time {
         Some(t) => {
             let (first, last) = tl.span();
@@ -92,25 +102,71 @@ pub fn open_scene(
         }
         None => 0,
     };
-    let map = load_step(&tl.series, k)?;
+    let map = tl.step(k)?;
+    tl.opened = Some((k, map.clone()));
     Ok((map, Some(tl)))
 }
 
 impl Timeline {
-    /// Open the series sidecar `path`; each step's map is read once for its mean winds.
+    /// Open the series sidecar `path` (its steps' sidecars are read, no step map is decoded).
     pub fn open(path: &Path) -> Result<Timeline> {
         let series = Series::load(path)?;
-        let mut means = Vec::with_capacity(series.steps().len());
-        for (k, s) in series.steps().iter().enumerate() {
-            means.push((s.valid_time, mean_winds(&load_step(&series, k)?)));
-        }
+        let means = series
+            .steps()
+            .iter()
+            .map(|s| (s.valid_time, s.mean_wind))
+            .collect();
         Ok(Timeline {
             series,
             means,
+            opened: None,
             held: None,
             ahead: None,
             uploads: 0,
+            load_ahead: true,
+            decoded: Arc::new(AtomicU32::new(0)),
         })
+    }
+
+    /// Step maps decoded since the series was opened.
+    pub fn decoded(&self) -> u32 {
+        self.decoded.load(Ordering::Relaxed)
+    }
+
+    /// Step `k`'s map: the one [`open_scene`] kept, else decoded (its mean wind noted).
+    fn step(&mut self, k: usize) -> Result<CloudMap> {
+        if let Some((j, m)) = self.opened.take() {
+            if j == k {
+                return Ok(m);
+            }
+            self.opened = Some((j, m));
+        }
+        let m = load_step(&self.series, k, &self.decoded)?;
+        self.note_mean(k, &m);
+        Ok(m)
+    }
+
+    fn note_mean(&mut self, k: usize, map: &CloudMap) {
+        if let Some(slot) = self.means.get_mut(k) {
+            slot.1.get_or_insert_with(|| map_mean_wind(map));
+        }
+    }
+
+    /// Make the mean winds of steps 0..=`last` known (an older sidecar lacks them: those steps'
+    /// maps are decoded).
+    fn fill_means(&mut self, last: usize) -> Result<()> {
+        for k in 0..=last.min(self.means.len().saturating_sub(1)) {
+            if self.means[k].1.is_none() {
+                let m = load_step(&self.series, k, &self.decoded)?;
+                self.note_mean(k, &m);
+            }
+        }
+        Ok(())
+    }
+
+    /// Step `k`'s mean winds, known once [`Timeline::prepare`] has filled them in.
+    fn mean(&self, k: usize) -> PerLayer {
+        self.means[k].1.unwrap_or_default()
     }
 
     /// First and last valid time.
@@ -165,16 +221,23 @@ impl Timeline {
     /// The wind cirrus is streaked along through the whole series: the first step's
     /// region-mean winds. One direction for the flight: the streaked noise is measured from the
     /// region's centre, so a direction turning with time would swing it by distance × angle
-    /// far from the centre, and the pattern would boil (`Settings::streak_wind`).
+    /// far from the centre, and the pattern would boil (`Settings::streak_wind`). Read after
+    /// [`Timeline::prepare`], which makes it known.
     pub fn streak_wind(&self) -> PerLayer {
-        self.means[0].1
+        self.mean(0)
     }
 
     /// How far each layer's noise has drifted with its mean wind from the first step to `time`
-    /// (east, north m): the integral of the piecewise-linear wind.
-    pub fn drift_m(&self, time: DateTime<Utc>) -> PerLayer {
+    /// (east, north m): the integral of the piecewise-linear wind. Needs the means of the steps
+    /// up to `time`'s interval ([`Timeline::prepare`] fills them in).
+    fn drift_m(&self, time: DateTime<Utc>) -> PerLayer {
         let secs = |a: DateTime<Utc>, b: DateTime<Utc>| (b - a).num_milliseconds() as f64 / 1e3;
-        let m = &self.means;
+        let m: Vec<(DateTime<Utc>, PerLayer)> = self
+            .means
+            .iter()
+            .enumerate()
+            .map(|(k, x)| (x.0, self.mean(k)))
+            .collect();
         let mut out = [[0.0; 2]; 3];
         let mut add = |wa: &PerLayer, wb: &PerLayer, dt: f64, frac: f64| {
             // ∫₀^frac·dt of the wind going linearly from wa to wb over dt.
@@ -214,7 +277,7 @@ impl Timeline {
     ) -> std::result::Result<PerLayer, TimelineError> {
         let Some(k) = self.interval(time) else {
             if self.held.is_none() {
-                let m = load_step(&self.series, 0)?;
+                let m = self.step(0)?;
                 r.set_map(&m);
                 self.held = Some((0, m));
             }
@@ -223,22 +286,31 @@ impl Timeline {
         if self.held.as_ref().map(|h| h.0) != Some(k) {
             let a = match self.held.take() {
                 Some((j, later)) if j + 1 == k => later,
-                _ => load_step(&self.series, k)?,
+                _ => self.step(k)?,
             };
             let b = match self.ahead.take() {
                 Some((j, handle)) if j == k + 1 => {
-                    handle.join().map_err(|_| TimelineError::Loader)??
+                    let m = handle.join().map_err(|_| TimelineError::Loader)??;
+                    self.note_mean(k + 1, &m);
+                    m
                 }
-                _ => load_step(&self.series, k + 1)?,
+                _ => self.step(k + 1)?,
             };
             r.set_pair(&a, &b)?;
             self.uploads += 1;
             self.held = Some((k, b));
-            if k + 2 < self.series.steps().len() {
+            self.opened = None;
+            if self.load_ahead && k + 2 < self.series.steps().len() {
                 let series = self.series.clone();
-                self.ahead = Some((k + 2, std::thread::spawn(move || load_step(&series, k + 2))));
+                let decoded = Arc::clone(&self.decoded);
+                self.ahead = Some((
+                    k + 2,
+                    std::thread::spawn(move || load_step(&series, k + 2, &decoded)),
+                ));
             }
         }
+        // The drift integrates the means from the first step to this interval's end.
+        self.fill_means(k + 1)?;
         Ok(self.drift_m(time))
     }
 }

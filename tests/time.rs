@@ -43,45 +43,10 @@ fn real_series(dir: &Path, size: &str) -> Option<PathBuf> {
     Some(dir.join("na.json"))
 }
 
-/// A synthetic series of `n` steps 6 h apart beside the real one: +0 h, +6 h, +0 h, … maps.
-/// Each step has its own sidecar, a copy of the real step's recording the synthetic step's
-/// hour and valid time (a series' load checks each step's sidecar against its entry), over
-/// the real step's images.
+/// A synthetic series of `n` steps 6 h apart beside the real one: +0 h, +6 h, +0 h, … maps,
+/// each step with its own step sidecar.
 fn synthetic_series(real: &Path, n: usize) -> PathBuf {
-    let read = |p: &Path| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
-    };
-    let mut v = read(real);
-    let steps = v["steps"].as_array().unwrap().clone();
-    let t0 = DateTime::parse_from_rfc3339(v["reference_time"].as_str().unwrap())
-        .unwrap()
-        .with_timezone(&Utc);
-    let new: Vec<serde_json::Value> = (0..n)
-        .map(|k| {
-            let mut s = steps[k % 2].clone();
-            let hour = 6.0 * k as f64;
-            let valid = (t0 + Duration::hours(6 * k as i64))
-                .format("%Y-%m-%dT%H:%M:%SZ")
-                .to_string();
-            let mut m = read(&real.with_file_name(s["map"].as_str().unwrap()));
-            m["source"]["forecast_step_h"] = hour.into();
-            m["source"]["valid_time"] = valid.clone().into();
-            let name = format!("synthetic-{n}-step-{k}.json");
-            std::fs::write(
-                real.with_file_name(&name),
-                serde_json::to_string_pretty(&m).unwrap(),
-            )
-            .unwrap();
-            s["forecast_hour"] = hour.into();
-            s["valid_time"] = valid.into();
-            s["map"] = name.into();
-            s
-        })
-        .collect();
-    v["steps"] = new.into();
-    let path = real.with_file_name(format!("synthetic-{n}-steps.json"));
-    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-    path
+    common::series::repeated(real, &format!("synthetic-{n}-steps"), n, 6.0, true)
 }
 
 fn settings(time: DateTime<Utc>) -> Settings {
@@ -108,7 +73,7 @@ fn the_gpu_blend_matches_the_cpu_blend_half_way() {
         let mut s = settings(t);
         s.layers_on = on;
         // One streak direction for the three renders: the comparison is of the coverage.
-        s.streak_wind = Some(stratus::timeline::mean_winds(&a));
+        s.streak_wind = Some(stratus_ingest::series::winds::map_mean_wind(&a));
         r.render(&View::TopDown, w, h, &s).unwrap().alpha()
     };
     for (name, on) in [

@@ -69,6 +69,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (w, h) = parse_size(&a.size)?;
     let mut r = Renderer::new(a.look.gpu()?, &map);
     if let Some(tl) = &mut timeline {
+        // One frame: the step after the two around --time is never needed.
+        tl.load_ahead = false;
         settings.drift_m = tl.prepare(&mut r, settings.time)?;
         settings.streak_wind = Some(tl.streak_wind());
     }
@@ -84,6 +86,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     save_png(&a.out, &out.to_image())?;
     if a.timings {
         print_timings(&out)?;
+        if let Some(tl) = &timeline {
+            out!(
+                "series: {} of {} step maps decoded",
+                tl.decoded(),
+                tl.series.steps().len()
+            )?;
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

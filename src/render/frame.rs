@@ -180,13 +180,24 @@ pub fn auto_exposure(sky: &Sky) -> f64 {
     let key = luminance(sky.sun.colour) * SUN_INTENSITY * 0.1
         + 0.15 * day
         + luminance(sky.moon.colour) * SUN_INTENSITY * 0.12;
-    let e = 0.6 / key.max(1e-9) * (0.2 + 0.8 * day);
+    // No night is exposed brighter than a full Moon overhead: with less light (a crescent, the
+    // Moon down) the picture is darker, as night is. Without this floor the key went to 0 with
+    // the Sun and Moon both down and the exposure to 1.2e8, which clipped the faint pre-dawn
+    // sky into saturated colour bands (issue 28).
+    let e = 0.6 / key.max(night_key()) * (0.2 + 0.8 * day);
     // Twilight's sky (the atmosphere's tables) is far brighter than this key counts: at most
-    // 2 stops over daylight while the Sun is less than 8° down, so dusk reads as dusk; by
-    // astronomical night (12° down) the Moon's key alone.
-    let twilight = ((sky.sun_elevation_deg + 12.0) / 4.0).clamp(0.0, 1.0);
+    // 2 stops over daylight while the Sun is less than 8° down, so dusk reads as dusk, then
+    // opening up about an e-fold a degree, as the tables' twilight glow fades, to the night's
+    // key at astronomical night (18° down), when the glow is gone. (Reaching it at 12° down
+    // clipped the glow still there between 12° and 15°.)
+    let twilight = ((sky.sun_elevation_deg + 18.0) / 10.0).clamp(0.0, 1.0);
     let cap = (4.0 * FIXED_EXPOSURE).ln() * twilight + e.ln() * (1.0 - twilight);
     e.min(cap.exp())
+}
+
+/// The key light (as [`auto_exposure`] counts it) of a full Moon overhead: the brightest night.
+fn night_key() -> f64 {
+    luminance(crate::sun::transmittance(90.0)) * crate::sun::MOON_TO_SUN * SUN_INTENSITY * 0.12
 }
 
 /// The exposure `--exposure EV` fixes at EV 0: about what the Sun's-height exposure gives with

@@ -70,14 +70,7 @@ fn widened((base, top): (f32, f32)) -> (f32, f32) {
     (base, top.max(base + MIN_COLUMN_M))
 }
 
-/// Per layer, the mean of the wind images over the lattice (m/s).
-pub fn mean_wind(s: &MapStructure) -> [[f64; 2]; 3] {
-    let n = s.wind_u.len().max(1) as f64;
-    std::array::from_fn(|c| {
-        let mean = |w: &[[u16; 3]]| w.iter().map(|x| sample_to_wind(x[c])).sum::<f64>() / n;
-        [mean(&s.wind_u), mean(&s.wind_v)]
-    })
-}
+pub use stratus_ingest::series::winds::mean_wind;
 
 fn is_streaked(code: u8) -> bool {
     matches!(

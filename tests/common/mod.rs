@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+pub mod series;
+
 /// Run the `stratus` binary with `args`, logging only errors.
 pub fn stratus(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stratus"))

@@ -51,6 +51,11 @@ pub struct SeriesStep {
     /// north); `None` for a map without structure images.
     #[serde(default)]
     pub winds: Option<StepWinds>,
+    /// Per layer (low, middle, high) the mean of those images over the region, (east, north)
+    /// m/s ([`super::winds`]): the renderer's noise drift. Absent in older sidecars (the
+    /// renderer then decodes the step map for it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_wind: Option<super::winds::LayerWinds>,
 }
 
 /// File names of a step map's layer-wind images (R/G/B = low/middle/high; docs/ingest.md).
@@ -163,6 +168,12 @@ impl SeriesMeta {
                     s.map
                 ));
             }
+            if s.mean_wind.is_some_and(|w| !super::winds::is_plausible(&w)) {
+                return Err(format!(
+                    "{at}.mean_wind: not finite, or beyond ±{} m/s",
+                    super::winds::MAX_MEAN_WIND
+                ));
+            }
             if let Some(w) = &s.winds {
                 for (k, n) in [("u", &w.u), ("v", &w.v)] {
                     if !is_plain_name(n) {
@@ -232,6 +243,7 @@ mod tests {
                 u: format!("{name}.wind-u.png"),
                 v: format!("{name}.wind-v.png"),
             }),
+            mean_wind: Some([[1.5, -0.5], [6.0, 0.25], [12.0, 3.0]]),
         };
         SeriesMeta {
             format: SERIES_FORMAT.into(),
@@ -285,6 +297,18 @@ mod tests {
         let mut bad = m.clone();
         bad.format = "stratus-cloudmap/3".into();
         assert!(bad.validate().unwrap_err().contains("format"));
+        let mut bad = m.clone();
+        bad.steps[1].mean_wind = Some([[f64::NAN, 0.0], [0.0; 2], [0.0; 2]]);
+        assert!(bad.validate().unwrap_err().contains("steps[1].mean_wind"));
+        bad.steps[1].mean_wind = Some([[0.0; 2], [0.0, -400.0], [0.0; 2]]);
+        assert!(bad.validate().unwrap_err().contains("steps[1].mean_wind"));
+        // An older sidecar, without the means, still reads.
+        let mut old = m.clone();
+        old.steps.iter_mut().for_each(|s| s.mean_wind = None);
+        let text = serde_json::to_string(&old).unwrap();
+        assert!(!text.contains("mean_wind"), "{text}");
+        assert_eq!(serde_json::from_str::<SeriesMeta>(&text).unwrap(), old);
+        old.validate().unwrap();
         let mut bad = m;
         bad.steps.clear();
         assert!(bad.validate().unwrap_err().contains("steps"));

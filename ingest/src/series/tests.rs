@@ -239,6 +239,7 @@ fn a_series_loads_blends_between_steps_and_refuses_missing_maps() {
                 .to_string_lossy()
                 .into(),
             winds: None,
+            mean_wind: None,
         });
     }
     let meta = SeriesMeta {

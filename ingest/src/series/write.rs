@@ -15,6 +15,7 @@ use crate::pipeline::{IngestOptions, Plan};
 
 use super::inputs::StepSource;
 use super::meta::{hour_tag, SeriesLayer, SeriesMeta, SeriesStep, StepWinds, SERIES_FORMAT};
+use super::winds::{step_mean_wind, LayerWinds};
 
 /// The step map of `out` (`DIR/NAME.png`) at `hour`: `DIR/NAME-fHHH.png`.
 pub fn step_png(out: &Path, hour: f64) -> PathBuf {
@@ -70,7 +71,7 @@ pub fn write_series(
     let series_json = out.with_extension("json");
     let stage = StagingDir::create(&series_json)?;
     let staged = |p: &Path| stage.path().join(p.file_name().unwrap_or_default());
-    let mut metas: Vec<(CloudMapMeta, &StepSource)> = Vec::with_capacity(steps.len());
+    let mut metas: Vec<StepWritten> = Vec::with_capacity(steps.len());
     for (k, s) in steps.iter().enumerate() {
         let step = s.shared_file.then_some(s.hour);
         let fc = Forecast::open_step(&s.path, select, step)?;
@@ -83,7 +84,7 @@ pub fn write_series(
             steps.len(),
             png.display()
         );
-        metas.push((load_meta(&sidecar)?, s));
+        metas.push((load_meta(&sidecar)?, s, step_mean_wind(&sidecar)?));
     }
     let meta = series_meta(&metas, first)?;
     let json = serde_json::to_vec_pretty(&meta).map_err(|e| IngestError::write(&series_json, e))?;
@@ -108,15 +109,18 @@ pub fn write_series(
     Ok((series_json, meta))
 }
 
+/// A step map written: its sidecar, its input and its region-mean layer winds.
+type StepWritten<'a> = (CloudMapMeta, &'a StepSource, Option<LayerWinds>);
+
 /// The series sidecar of the step maps written.
-fn series_meta(metas: &[(CloudMapMeta, &StepSource)], first: &StepSource) -> Result<SeriesMeta> {
-    let (m0, _) = &metas[0];
+fn series_meta(metas: &[StepWritten], first: &StepSource) -> Result<SeriesMeta> {
+    let (m0, _, _) = &metas[0];
     let reference_time = m0
         .source
         .reference_time
         .ok_or_else(|| IngestError::series(&first.path, "has no readable reference time (run)"))?;
     let mut steps = Vec::with_capacity(metas.len());
-    for (m, s) in metas {
+    for (m, s, mean_wind) in metas {
         let kinds = |x: &CloudMapMeta| x.layers.iter().map(|l| l.kind).collect::<Vec<_>>();
         if kinds(m) != kinds(m0) {
             return Err(IngestError::series(
@@ -141,6 +145,7 @@ fn series_meta(metas: &[(CloudMapMeta, &StepSource)], first: &StepSource) -> Res
             valid_time: crate::grib::info::after_step(reference_time, s.hour),
             map: name_of(&sidecar),
             winds,
+            mean_wind: *mean_wind,
         });
     }
     let meta = SeriesMeta {

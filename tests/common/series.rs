@@ -1,0 +1,54 @@
+//! Long series made cheaply from a real one: its step maps repeated at new forecast hours, each
+//! step with its own step sidecar (a copy of the real step's with the new hour and valid time,
+//! naming the same images), so each step's sidecar agrees with its entry in the series.
+
+use std::path::{Path, PathBuf};
+
+use chrono::{DateTime, Duration, Utc};
+use serde_json::Value;
+
+fn read_json(p: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn write_json(p: &Path, v: &Value) {
+    std::fs::write(p, serde_json::to_string_pretty(v).unwrap()).unwrap();
+}
+
+/// Beside the series sidecar `real`, the series `NAME.json` of `n` steps `every_h` hours apart
+/// from its run's analysis, step k the real series' step k mod (its steps). With
+/// `mean_winds: false` the steps' recorded mean winds are left out, as in a sidecar written
+/// before they were recorded.
+pub fn repeated(real: &Path, name: &str, n: usize, every_h: f64, mean_winds: bool) -> PathBuf {
+    let dir = real.parent().unwrap();
+    let mut series = read_json(real);
+    let real_steps = series["steps"].as_array().unwrap().clone();
+    let t0 = DateTime::parse_from_rfc3339(series["reference_time"].as_str().unwrap())
+        .unwrap()
+        .with_timezone(&Utc);
+    let steps: Vec<Value> = (0..n)
+        .map(|k| {
+            let hour = every_h * k as f64;
+            let valid = (t0 + Duration::milliseconds((hour * 3.6e6).round() as i64))
+                .format("%Y-%m-%dT%H:%M:%SZ")
+                .to_string();
+            let mut step = real_steps[k % real_steps.len()].clone();
+            let mut sidecar = read_json(&dir.join(step["map"].as_str().unwrap()));
+            sidecar["source"]["forecast_step_h"] = hour.into();
+            sidecar["source"]["valid_time"] = valid.clone().into();
+            let map = format!("{name}-step{k:04}.json");
+            write_json(&dir.join(&map), &sidecar);
+            step["forecast_hour"] = hour.into();
+            step["valid_time"] = valid.into();
+            step["map"] = map.into();
+            if !mean_winds {
+                step.as_object_mut().unwrap().remove("mean_wind");
+            }
+            step
+        })
+        .collect();
+    series["steps"] = steps.into();
+    let path = dir.join(format!("{name}.json"));
+    write_json(&path, &series);
+    path
+}
