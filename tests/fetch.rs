@@ -392,6 +392,26 @@ fn fetch(server: &Server, out: &Path, extra: &[&str]) -> Output {
     stratus(&a)
 }
 
+/// `fetch --step 6` of the 2015 run from `server` into `out`, running, its stderr piped.
+fn spawn_fetch(server: &Server, out: &Path) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .arg("fetch")
+        .args(RUN)
+        .args([
+            "--step",
+            "6",
+            "--resolution",
+            "2p50",
+            "--source",
+            &server.base,
+        ])
+        .arg("--out")
+        .arg(out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 /// What the default fields are, decided from the file itself (not its inventory): the bytes
 /// of every message holding RH, gh, u or v at 100–1000 hPa, cloud-layer TCDC, surface HGT or
 /// LAND, in file order.
@@ -1228,23 +1248,7 @@ fn a_fifo_in_the_cache_is_refused_not_waited_on() {
         .success());
     drop(server);
     let server = Server::start(&root, Faults::default());
-    let mut a = vec!["fetch".to_string()];
-    a.extend(RUN.iter().map(|s| s.to_string()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_stratus"))
-        .args(a)
-        .args([
-            "--step",
-            "6",
-            "--resolution",
-            "2p50",
-            "--source",
-            &server.base,
-        ])
-        .arg("--out")
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_fetch(&server, &out);
     let status = wait_for(&mut child, 20);
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
@@ -1370,23 +1374,7 @@ fn an_interrupt_before_the_first_range_removes_what_the_run_created() {
         if existed {
             std::fs::create_dir_all(&out).unwrap();
         }
-        let mut a = vec!["fetch".to_string()];
-        a.extend(RUN.iter().map(|s| s.to_string()));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_stratus"))
-            .args(a)
-            .args([
-                "--step",
-                "6",
-                "--resolution",
-                "2p50",
-                "--source",
-                &server.base,
-            ])
-            .arg("--out")
-            .arg(&out)
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
+        let mut child = spawn_fetch(&server, &out);
         let t0 = Instant::now();
         while !server.log().iter().any(|l| l.outcome == "hang") {
             assert!(

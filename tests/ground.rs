@@ -24,16 +24,7 @@ const TIBET: &str = "20,45,70,105";
 const ATLANTIC: &str = "30,65,-50,0";
 
 fn probe(map: &Path, at: &str) -> serde_json::Value {
-    let o = stratus(&[
-        "probe",
-        "--map",
-        map.to_str().unwrap(),
-        "--at",
-        at,
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
+    common::probe_json(map, at)
 }
 
 fn num(v: &serde_json::Value, key: &str) -> f64 {

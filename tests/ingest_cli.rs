@@ -342,16 +342,7 @@ fn the_pole_answers_the_same_at_every_longitude() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let map = dir.path().join("globe.json");
     let probe = |at: &str| {
-        let o = stratus(&[
-            "probe",
-            "--map",
-            map.to_str().unwrap(),
-            "--at",
-            at,
-            "--json",
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let mut v = common::probe_json(&map, at);
         let o = v.as_object_mut().unwrap();
         o.remove("lat");
         o.remove("lon");

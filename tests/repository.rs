@@ -146,7 +146,10 @@ fn no_file_names_a_path_outside_the_repository() {
     let mut bad = Vec::new();
     let mut checked = 0;
     // This file writes the forbidden paths itself, as the check's own test cases.
-    for rel in text_files.into_iter().filter(|r| !r.ends_with("tests/repository.rs")) {
+    for rel in text_files
+        .into_iter()
+        .filter(|r| !r.ends_with("tests/repository.rs"))
+    {
         let path = top.join(rel);
         let Ok(text) = std::fs::read_to_string(&path) else {
             continue;

@@ -242,16 +242,7 @@ fn free_bytes(path: &Path) -> Option<u64> {
     } else {
         existing
     };
-    #[cfg(unix)]
-    {
-        let s = rustix::fs::statvfs(existing).ok()?;
-        Some(s.f_bavail.saturating_mul(s.f_frsize))
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = existing;
-        None
-    }
+    stratus_ingest::fetch::space::free_bytes(existing)
 }
 
 /// Create `out` and any missing parents; returns the folders created, outermost first, each

@@ -60,3 +60,17 @@ pub fn real_map(dir: &Path, name: &str, region: &str, size: &str) -> PathBuf {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     dir.join(format!("{name}.json"))
 }
+
+/// `probe --map MAP --at AT --json`, which must succeed, as JSON.
+pub fn probe_json(map: &Path, at: &str) -> serde_json::Value {
+    let o = stratus(&[
+        "probe",
+        "--map",
+        map.to_str().unwrap(),
+        "--at",
+        at,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
