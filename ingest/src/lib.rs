@@ -1,9 +1,10 @@
 //! `stratus-ingest`: GFS GRIB2 relative humidity → CloudMap (DESIGN §1). No GPU.
 //!
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
-//! needed → [`spline`] upsamples onto the region's pixel grid → [`cloudmap`] applies the
+//! needed → [`spline`] upsamples onto the region's pixel grid → [`pipeline`] applies the
 //! critical-humidity formula per layer and writes the 16-bit RGBA PNG plus its [`meta`] sidecar,
-//! or ([`geotiff`]) one tiled, georeferenced GeoTIFF with overviews.
+//! or ([`geotiff`]) one tiled, georeferenced GeoTIFF with overviews; [`cloudmap`] loads a map
+//! back.
 //! Beside the coverage, [`weather`] derives per grid point and layer the cloud base and top
 //! (GFS's cloud layer, the RH column, or the band), a WMO cloud type and the layer wind, which
 //! the pipeline samples onto the pixels and stores in the images [`structure`] describes

@@ -4,9 +4,14 @@
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
 //! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
 //! `march` (compute ray march into a cloud texture), `exposure` (meters the frame), `present`
-//! (sky + composite + tone map); `reproject` makes a full frame from a subset march and the
-//! last frame (the window, `flight`). `weather` uploads the map (`blend` a second forecast step), `frame` forms the uniforms, `camera` holds the geometry, `preset` the
-//! quality levels, `gpu` the adapter, `readback` brings pictures back to the CPU.
+//! (sky + composite + tone map), `reproject` (a full frame from a subset march and the last
+//! frame: the window, `flight`), `section` (the march's cloud on a vertical curtain). What the
+//! stages read: `weather` uploads the map (`blend` a second forecast step), `structure` its
+//! per-column base, top, type and wind, `ground` the terrain and surface, `cells` the cumulus
+//! cell field, `profile` the per-type vertical profiles. Around them: `frame` forms the
+//! uniforms, `camera` holds the geometry, `preset` the quality levels, `gpu` the adapter,
+//! `shader` assembles the WGSL, `contract` the Rust↔WGSL contract, `stats` a frame's cost,
+//! `readback` brings pictures back to the CPU.
 
 pub mod atmosphere;
 pub mod blend;

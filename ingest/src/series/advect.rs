@@ -135,12 +135,6 @@ impl WindLattice {
     }
 }
 
-/// Layer `c`'s wind (m/s east, north) at a point of `s`, bilinear between structure pixels
-/// (clamped to the outer ones).
-pub fn sample_wind(s: &MapStructure, region: &Region, c: usize, lat: f64, lon: f64) -> (f64, f64) {
-    WindLattice::of(s, *region).map_or((0.0, 0.0), |l| l.at(c, lat, lon))
-}
-
 /// The point reached from (`lat`, `lon`) after `seconds` (negative: backwards, the departure
 /// point of a parcel arriving here) moving with `wind`: midpoint steps of at most
 /// [`SUBSTEP_S`].
