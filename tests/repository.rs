@@ -181,21 +181,21 @@ fn the_path_check_catches_a_path_outside() {
     let top = root();
     let tests = top.join("tests");
     assert_eq!(
-        parent_paths(r#"join("../shared/data") and [x](../docs/fly.md)."#),
-        ["../shared/data", "../docs/fly.md"]
+        parent_paths(r#"join("../beside/data") and [x](../docs/fly.md)."#),
+        ["../beside/data", "../docs/fly.md"]
     );
-    assert!(resolve(&top, &top, "../shared/data").is_none());
-    assert!(resolve(&top, &tests, "../shared/data").is_some_and(|r| !r.exists()));
+    assert!(resolve(&top, &top, "../beside/data").is_none());
+    assert!(resolve(&top, &tests, "../beside/data").is_some_and(|r| !r.exists()));
     assert!(resolve(&top, &tests, "../docs/fly.md").is_some_and(|r| r.exists()));
     assert!(!stays_inside(
         &top,
         &tests.join("fetch.rs"),
-        "../shared/data"
+        "../beside/data"
     ));
     assert!(!stays_inside(
         &top,
         &top.join("ingest/tests/reference.rs"),
-        "../../shared"
+        "../../beside"
     ));
     assert!(stays_inside(
         &top,
@@ -205,7 +205,7 @@ fn the_path_check_catches_a_path_outside() {
     assert!(!stays_inside(
         &top,
         &top.join("docs/fly.md"),
-        "../shared/DESIGN.md"
+        "../beside/DESIGN.md"
     ));
     assert!(stays_inside(&top, &top.join("docs/fly.md"), "../README.md"));
 }
