@@ -799,6 +799,23 @@ fn range_requests(server: &Server) -> usize {
 }
 
 /// The cached ranges in `dir`.
+/// A fetch of step 6 into `out` that failed after `n` ranges, one at a time: its `n` cached
+/// range files.
+fn partly_cached(root: &Path, out: &Path, n: usize) -> Vec<PathBuf> {
+    let server = Server::start(
+        root,
+        Faults {
+            fail_after: Some(n),
+            ..Faults::default()
+        },
+    );
+    let o = fetch(&server, out, &["--step", "6", "--parallel", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let cached = range_files(&out.join(".stratus-cache"));
+    assert_eq!(cached.len(), n, "{cached:?}");
+    cached
+}
+
 fn range_files(dir: &Path) -> Vec<PathBuf> {
     std::fs::read_dir(dir).map_or_else(
         |_| Vec::new(),
@@ -982,24 +999,13 @@ fn a_lying_server_leaves_nothing_cached_and_one_honest_run_recovers() {
 fn changed_cached_ranges_are_found_and_fetched_again() {
     let (d, root) = tree();
     let out = d.path().join("out");
-    let server = Server::start(
-        &root,
-        Faults {
-            fail_after: Some(3),
-            ..Faults::default()
-        },
-    );
-    let o = fetch(&server, &out, &["--step", "6", "--parallel", "1"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    let cached = range_files(&out.join(".stratus-cache"));
-    assert_eq!(cached.len(), 3, "{cached:?}");
+    let cached = partly_cached(&root, &out, 3);
     for p in &cached {
         let mut b = std::fs::read(p).unwrap();
         let mid = b.len() / 2;
         b[mid] ^= 0x40;
         std::fs::write(p, b).unwrap();
     }
-    drop(server);
     let server = Server::start(&root, Faults::default());
     let o = fetch(&server, &out, &["--step", "6"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1229,24 +1235,13 @@ fn a_step_needs_its_size_once_and_a_full_disk_is_refused_at_once() {
 fn a_fifo_in_the_cache_is_refused_not_waited_on() {
     let (d, root) = tree();
     let out = d.path().join("out");
-    let server = Server::start(
-        &root,
-        Faults {
-            fail_after: Some(1),
-            ..Faults::default()
-        },
-    );
-    let o = fetch(&server, &out, &["--step", "6", "--parallel", "1"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    let cached = range_files(&out.join(".stratus-cache"));
-    assert_eq!(cached.len(), 1);
+    let cached = partly_cached(&root, &out, 1);
     std::fs::remove_file(&cached[0]).unwrap();
     assert!(Command::new("mkfifo")
         .arg(&cached[0])
         .status()
         .unwrap()
         .success());
-    drop(server);
     let server = Server::start(&root, Faults::default());
     let mut child = spawn_fetch(&server, &out);
     let status = wait_for(&mut child, 20);
