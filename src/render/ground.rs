@@ -63,14 +63,14 @@ pub fn upload(gpu: &super::Gpu, g: Option<&Ground>) -> (wgpu::Texture, [f32; 4])
             [1.0, 1.0, 0.0, 0.0],
         ),
     };
-    let tex = super::texture_2d(
+    let tex = super::texture::texture_2d(
         &gpu.device,
         "ground",
         (w, h),
         FORMAT,
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
     );
-    super::weather::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
+    super::texture::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
     (tex, uv)
 }
 
