@@ -214,7 +214,7 @@ impl Renderer {
 
     /// The march's variants compiled so far: a frame needing one compiles it (tests check that
     /// a map's genera pick the right one).
-    pub fn march_variants_compiled(&self) -> Vec<march::Variant> {
+    pub fn march_variants_compiled(&self) -> Vec<pipeline::Variant> {
         self.march.compiled()
     }
 
@@ -466,7 +466,7 @@ impl Renderer {
         let split = step.reproject.is_some();
         march.encode(
             gpu,
-            march::Variant::of(uniforms.flags),
+            pipeline::Variant::of(uniforms.flags),
             enc,
             map_bind,
             t.march_bind(step.set, split),
@@ -614,7 +614,7 @@ impl Renderer {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let out = pass.encode(
             &self.gpu,
-            march::Variant::of(uniforms.flags),
+            pipeline::Variant::of(uniforms.flags),
             &mut enc,
             (self.march.device_bind(), &self.map_bind),
             columns,

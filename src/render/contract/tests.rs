@@ -409,8 +409,8 @@ fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
     use crate::render::exposure::{ExposureParams, ExposureState};
     use crate::render::noise::NoiseParams;
     use crate::render::reproject::ReprojectParams;
+    use crate::render::scene::ShadowParams;
     use crate::render::section::SectionParams;
-    use crate::render::shadow::ShadowParams;
     vec![
         (
             ShadowParams::WGSL_NAME,
