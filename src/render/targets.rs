@@ -1,11 +1,15 @@
 //! Render targets, by the output size's lifetime: the frame sets the march (or the reproject
 //! stage) writes and the exposure and present stages read, the cut-ray mask, the headless
 //! output, and a reprojected frame's history (the subset march and a second frame set, ping-
-//! pong). Made again only when the output size (or the subset cell) changes.
+//! pong). Made again only when the output size (or the subset cell) changes
+//! (`Renderer::targets`), and a reprojected frame's plan (`Renderer::plan_reprojection`).
 
+use super::camera::View;
+use super::frame::FrameUniforms;
 use super::gpu::Gpu;
+use super::settings::{Reprojection, Settings};
 use super::texture::texture_2d;
-use super::{exposure, march, present, reproject};
+use super::{exposure, march, present, reproject, Renderer};
 
 /// One full-size frame's textures: what the march (or the reproject stage) writes and the
 /// exposure and present stages read.
@@ -36,7 +40,7 @@ impl FrameSet {
 }
 
 /// The cloud and scene textures of one frame (or subset march) of `size`.
-pub(super) fn frame_textures(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::Texture) {
+fn frame_textures(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::Texture) {
     let tex = |label| {
         texture_2d(
             &gpu.device,
@@ -189,4 +193,123 @@ pub(super) struct MarchStep {
     pub(super) reproject: Option<reproject::ReprojectParams>,
     /// Invocations: the pixels, or the subset cells.
     pub(super) dispatch: (u32, u32),
+}
+
+/// The targets' lifetimes: made for an output size, a history for a reprojected frame.
+impl Renderer {
+    /// The targets for a `width`×`height` march, made when the size changes.
+    pub(super) fn targets(&mut self, width: u32, height: u32) -> &mut Targets {
+        let fits = self
+            .targets
+            .as_ref()
+            .is_some_and(|t| t.width == width && t.height == height);
+        if !fits {
+            self.made.targets += 1;
+            self.targets = None;
+        }
+        let (stages, targets) = self.split();
+        targets.get_or_insert_with(|| Targets::new(stages, (width, height)))
+    }
+
+    /// The stages that bind frame textures, beside the targets they bind.
+    fn split(&mut self) -> (Stages<'_>, &mut Option<Targets>) {
+        let Renderer {
+            gpu,
+            march,
+            present,
+            exposure,
+            reproject,
+            targets,
+            ..
+        } = self;
+        let stages = Stages {
+            gpu,
+            march,
+            present,
+            exposure,
+            reproject,
+        };
+        (stages, targets)
+    }
+
+    /// Which frame set this frame writes and how its march is dispatched; a subset march puts
+    /// its cell and offset in `uniforms`.
+    pub(super) fn march_step(
+        &self,
+        plan: Option<&ReprojectionPlan>,
+        uniforms: &mut FrameUniforms,
+        size: (u32, u32),
+    ) -> MarchStep {
+        let history = self.targets.as_ref().and_then(|t| t.history.as_ref());
+        match (plan, history) {
+            (Some(p), Some(h)) if !p.full => {
+                let [ox, oy] = reproject::subset_offset(h.n, h.frames);
+                uniforms.subset_n = h.n as f32;
+                uniforms.subset_offset = [ox as f32, oy as f32];
+                MarchStep {
+                    set: 1 - h.shown,
+                    reproject: Some(p.params),
+                    dispatch: h.cells,
+                }
+            }
+            (Some(_), Some(h)) => MarchStep {
+                set: 1 - h.shown,
+                reproject: None,
+                dispatch: size,
+            },
+            _ => MarchStep {
+                set: 0,
+                reproject: None,
+                dispatch: size,
+            },
+        }
+    }
+
+    /// Make the targets for this frame and decide how it is made: `None` marches every pixel;
+    /// else a reprojected frame, `full` when its history does not fit and the settings ask
+    /// for a full march then. Records the frame as the next one's history.
+    pub(super) fn plan_reprojection(
+        &mut self,
+        view: &View,
+        size: (u32, u32),
+        settings: &Settings,
+    ) -> Option<ReprojectionPlan> {
+        let generation = self.map_generation;
+        self.targets(size.0, size.1);
+        let (stages, targets) = self.split();
+        let t = targets.as_mut()?;
+        let n = settings.march.subset;
+        let (Reprojection::On { full_reset }, View::Perspective(camera), true) =
+            (settings.reprojection, view, n > 1)
+        else {
+            // This frame writes the first frame set: the history's next frame starts afresh.
+            if let Some(h) = t.history.as_mut() {
+                h.last = None;
+            }
+            return None;
+        };
+        if t.history.as_ref().is_none_or(|h| h.n != n) {
+            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
+        }
+        let h = t.history.as_mut()?;
+        let now = reproject::FrameKey {
+            camera: *camera,
+            size,
+            subset: n,
+            map_generation: generation,
+            time: settings.time,
+            settings: settings.clone(),
+        };
+        let misfit = match &h.last {
+            None => Some("first frame"),
+            Some(last) => reproject::misfit(last, &now),
+        };
+        let params = reproject::params(h.last.as_ref(), camera, misfit.is_none());
+        h.last_reset = misfit;
+        h.last = Some(now);
+        Some(ReprojectionPlan {
+            full: misfit.is_some() && full_reset,
+            params,
+        })
+    }
 }
