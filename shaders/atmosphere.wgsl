@@ -16,8 +16,11 @@
 @group(3) @binding(0) var ap_out: texture_storage_3d<rgba16float, write>;
 
 const ATMO_TOP_M: f32 = 100000.0;
-// Rayleigh and Mie scattering at sea level (1/m) and scale heights (m); ozone absorption.
-const RAYLEIGH: vec3<f32> = vec3<f32>(5.802e-6, 13.558e-6, 33.1e-6);
+// Rayleigh and Mie scattering at sea level (1/m) and scale heights (m); ozone absorption. The
+// green Rayleigh and the Mie extinction are the clear air the haze leaves out (Rust:
+// frame::CLEAR_AIR_EXTINCTION; shared through render::contract).
+const RAYLEIGH_GREEN: f32 = 13.558e-6;
+const RAYLEIGH: vec3<f32> = vec3<f32>(5.802e-6, RAYLEIGH_GREEN, 33.1e-6);
 const RAYLEIGH_H: f32 = 8000.0;
 const MIE_SCATTER: f32 = 3.996e-6;
 const MIE_EXTINCT: f32 = 4.40e-6;

@@ -79,7 +79,7 @@ var<private> local_count: array<u32, N_COUNTERS>;
 // Set by the shadow stage's pipeline: the density is the noise's expectation, not one sample of
 // it, so the full-column light is smooth by construction (carve below).
 override MEAN_DENSITY: bool = false;
-// Set by every cloud stage's pipeline (march, shadow, section: render::march::StagePipelines,
+// Set by every cloud stage's pipeline (march, shadow, section: render::pipeline::StagePipelines,
 // one per Variant): the frame's features (FEATURE_BITS of its flags) as constants, so the code
 // of a feature the frame does not use is compiled out: a CPU driver runs both sides of every
 // branch, and pays for a branch no lane takes (the two-step blend's nine look-ups and the

@@ -82,7 +82,7 @@ struct Frame {
     _pad4: f32,
 };
 
-// The full-column light's volume (render::shadow::ShadowParams): what the shadow stage made and
+// The full-column light's volume (render::scene::ShadowParams): what the shadow stage made and
 // how the stages that light or show the scene look it up (scene.wgsl).
 struct ShadowParams {
     key_dir: vec3<f32>,         // toward the key light (Sun or Moon) the volume was made for

@@ -80,12 +80,22 @@ fn seg_start(seg: vec2<f32>, jitter: f32) -> vec2<f32> {
     return vec2<f32>(t, seg_dt);
 }
 
-fn march(r: Ray, jitter: f32) -> vec4<f32> {
-    cloud_dist = 0.0;
-    let mu = dot(r.d, r.up);
+// Where a view ray is marched (the march's first step): `seg` from where it enters the cloud
+// shells to the innermost shell's bottom (or to its end), `seg2` below that bottom (empty: x > y),
+// both ending where the haze, the sea or the terrain hides what lies behind; `hit` is false
+// when the ray misses the shells.
+struct Segments {
+    hit: bool,
+    seg: vec2<f32>,
+    seg2: vec2<f32>,
+};
+
+fn segments(r: Ray, mu: f32) -> Segments {
+    var s: Segments;
     let outer = shell_hits(r.h, mu, f.shell_top_m);
     if (outer.y < 0.0 || outer.x > outer.y) {
-        return vec4<f32>(0.0);
+        s.hit = false;
+        return s;
     }
     // Beyond five visibility lengths the haze hides everything (haze_cutoff_m). Haze lives in the low
     // atmosphere, so the length counts from where the ray enters the cloud shells: a camera in
@@ -104,201 +114,267 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     }
     // At most two segments: above and below the innermost shell's bottom.
     let inner = shell_hits(r.h, mu, f.shell_base_m);
-    var seg = vec2<f32>(max(outer.x, 0.0), end_all);
-    var seg2 = vec2<f32>(1.0, 0.0);
+    s.hit = true;
+    s.seg = vec2<f32>(max(outer.x, 0.0), end_all);
+    s.seg2 = vec2<f32>(1.0, 0.0);
     if (inner.x <= inner.y && inner.y > 0.0) {
-        seg = vec2<f32>(max(outer.x, 0.0), min(end_all, inner.x));
-        seg2 = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
+        s.seg = vec2<f32>(max(outer.x, 0.0), min(end_all, inner.x));
+        s.seg2 = vec2<f32>(max(max(outer.x, 0.0), inner.y), end_all);
     }
+    return s;
+}
 
-    let no_sky = feature(FLAG_NO_SKY);
+// A view ray's walk through clear air from one cloud sample to the next (the march's second
+// step): where it is, how it steps, and the sample it stopped at.
+struct Walk {
+    seg: vec2<f32>,     // the segment being walked
+    seg2: vec2<f32>,    // the one after it (empty: x > y)
+    second: bool,       // walking seg2
+    t: f32,
+    seg_dt: f32,        // the segment's longest step (seg_start)
+    steps: u32,
+    stride: bool,
+    mult: f32,
+    fine_left: u32,
+    // Whether the last sample was clear: a cloud met after clear air has its edge refined, by
+    // `refine` more halvings of [lo_t, t].
+    prev_clear: bool,
+    refine: u32,
+    lo_t: f32,
+    finished: bool,     // the march is over: the ray's end, max_steps, or opaque
+    // The cloud sample found: extinction (1/m), step, map uv, altitude.
+    sigma: f32,
+    dt: f32,
+    uv: vec2<f32>,
+    h: f32,
+};
+
+fn start_walk(span: Segments, jitter: f32) -> Walk {
+    let st = seg_start(span.seg, jitter);
+    return Walk(span.seg, span.seg2, false, st.x, st.y, 0u, false, 1.0, 0u, true, 0u, 0.0, false,
+                0.0, 0.0, vec2<f32>(0.0), 0.0);
+}
+
+// Walk on to the ray's next sample with cloud, looking up density only: true with the sample
+// in the walk's sigma, dt, uv and h; false when the march is over (`finished`: it ended).
+fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jitter: f32) -> bool {
     let skip = has_flag(f, FLAG_SKIP);
-    let lod = has_flag(f, FLAG_LIGHT_LOD);
     let may_stride = has_flag(f, FLAG_STRIDE);
     // The score's top-down columns stride at most 2×: there a wisp jumped over is a mask pixel
     // lost (at 4× the top-down RGB error against reference rose from 0.006 to 0.023).
-    let max_mult = select(4.0, 2.0, no_sky);
+    let max_mult = select(4.0, 2.0, feature(FLAG_NO_SKY));
     let detail = feature(FLAG_DETAIL);
+    let max_steps = f.max_steps;
+    var w = *walk;
+    w.sigma = 0.0;
+    w.dt = 0.0;
+    w.uv = vec2<f32>(0.0);
+    w.h = 0.0;
+    var found = false;
+    loop {
+        if (w.t >= w.seg.y) {
+            if (w.second) {
+                w.finished = true;
+                break;
+            }
+            w.second = true;
+            w.seg = w.seg2;
+            let st = seg_start(w.seg, jitter);
+            w.t = st.x;
+            w.seg_dt = st.y;
+            w.stride = false;
+            w.mult = 1.0;
+            w.fine_left = 0u;
+            continue;
+        }
+        if (w.refine == 0u) {
+            if (w.steps >= max_steps) {
+                w.finished = true;
+                break;
+            }
+            w.steps += 1u;
+            w.dt = min(clamp(f.step_min_m + f.step_growth * w.t, f.step_min_m, f.step_max_m), w.seg_dt);
+        }
+        // While refining, the point half-way between the last clear point and t (cloudy).
+        let te = select(w.t, 0.5 * (w.lo_t + w.t), w.refine > 0u);
+        let uv_e = sample_uv(origin + r.d * te);
+        if (w.refine == 0u && skip && coarse_empty(uv_e)) {
+            local_count[C_SKIPPED] += 1u;
+            w.t += max(w.dt, f.skip_m);
+            continue;
+        }
+        let h_e = altitude_at(r.h, mu, te);
+        // The one density call of the loop (a second call site, as a bisection loop of its
+        // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
+        let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
+        if (w.refine > 0u) {
+            w.refine -= 1u;
+            if (s_e > 0.0) {
+                w.t = te;
+                w.sigma = s_e;
+                w.uv = uv_e;
+                w.h = h_e;
+            } else {
+                w.lo_t = te;
+            }
+            if (w.refine == 0u) {
+                w.prev_clear = false;
+                w.fine_left = FINE_AFTER_CLOUD;
+                found = true;
+                break;
+            }
+            continue;
+        }
+        w.uv = uv_e;
+        w.h = h_e;
+        w.sigma = s_e;
+        if (w.sigma > 0.0 && w.stride) {
+            // Met cloud on a long step: back up to the last clear sample and go on at the
+            // normal step, so the cloud's near edge is found at full resolution.
+            w.stride = false;
+            w.fine_left = FINE_AFTER_CLOUD;
+            w.t = max(w.t - w.dt * w.mult, w.seg.x);
+            w.mult = 1.0;
+            continue;
+        }
+        if (w.sigma > 0.0) {
+            if (w.prev_clear && w.t - w.dt > w.seg.x) {
+                // Entering cloud from clear air: bisect the step for the edge (REFINE
+                // halvings). A dense cloud is opaque within one step, so its colour is that
+                // of the sample; at a fixed step that sample's depth inside the edge (and
+                // so its light) would follow the step's phase, drawing contour rings over
+                // the relief.
+                w.refine = REFINE;
+                w.lo_t = w.t - w.dt;
+                continue;
+            }
+            w.prev_clear = false;
+            w.fine_left = FINE_AFTER_CLOUD;
+            found = true;
+            break;
+        }
+        w.prev_clear = true;
+        if (w.fine_left > 0u) {
+            w.fine_left -= 1u;
+        } else if (may_stride) {
+            w.stride = true;
+            w.mult = min(w.mult * 2.0, max_mult);
+        }
+        w.t += select(w.dt, w.mult * w.dt, w.stride);
+    }
+    *walk = w;
+    return found;
+}
+
+// The view ray's terms of the phase function, the same for each of its samples.
+struct ViewPhase {
+    cos_t: f32,      // cosine to the key light
+    ph_fn: f32,      // the dual-lobe phase at it
+    powder_w: f32,   // how much the powder effect is spared (toward the light)
+};
+
+// The light a cloud sample at distance t receives, toward the eye (the march's third step;
+// DESIGN §8). `tr`: the view ray's transmittance so far (fewer light steps behind opaque cloud).
+fn light_in(r: Ray, origin: vec3<f32>, t: f32, h: f32, uv: vec2<f32>, tr: f32, view: ViewPhase) -> vec3<f32> {
+    let no_sky = feature(FLAG_NO_SKY);
+    let lod = has_flag(f, FLAG_LIGHT_LOD);
+    let sun_key = f.sun_is_key != 0u;
+    let n_light = f.light_steps;
+    let g = f.hg_g;
+    let pos = origin + r.d * t;
+    let np = r.np + r.d * t;
+    let up = normalize(pos);
+    var key = select(f.moon_dir, f.sun_dir, sun_key);
+    var key_col = select(f.moon_col, f.sun_col, sun_key);
+    var ambient = sky_radiance(f, up, up);
+    if (no_sky) {
+        key = up;
+        key_col = vec3<f32>(1.0);
+        ambient = vec3<f32>(0.3);
+    }
+    var nl = n_light;
+    if (lod && tr < 0.3) {
+        nl = max(1u, n_light / 2u);
+    }
+    // Toward the key light: the short march through the detailed cloud near the sample,
+    // then the whole column beyond it from the shadow stage's smooth volume (DESIGN §8).
+    var tau = light_depth(pos, h, np, key, nl);
+    var od_up = 0.0;
+    var bounce = vec3<f32>(0.0);
+    if (!no_sky) {
+        let reach = f.light_step0_m * (f32(nl) + 5.0);
+        let far = pos + key * reach;
+        tau += column_od(far, altitude_at(h, dot(key, up), reach)).x;
+        od_up = column_od(pos, h).y;
+        // Light the ground below sends back up, for the bases (its albedo, in its shadows).
+        let gr = ground_at(uv);
+        bounce = gr.yzw * ground_irradiance(up * (EARTH_R + gr.x), up, gr.x, ambient);
+    }
+    // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
+    // black, plus two octaves of Hillaire's multiple-scattering approximation
+    // (extinction, phase g and energy each halved per octave); deeper than those reach, the
+    // diffuse light a deck lets through (two-stream), leaving it as from a Lambertian base.
+    let powder = 1.0 - exp(-2.0 * tau);
+    var ms = max(exp(-tau), f.beer_clamp * exp(-0.25 * tau)) * view.ph_fn;
+    ms += 0.5 * exp(-0.5 * tau) * phase(view.cos_t, 0.5 * g);
+    ms += 0.25 * exp(-0.25 * tau) * phase(view.cos_t, 0.25 * g);
+    let mu0 = max(dot(key, up), 0.1);
+    // The octaves hold the first few optical depths (the relief's light and shade); the
+    // two-stream takes over by τ ≈ 10, where they have faded.
+    ms = max(ms, diffuse_t(tau * mu0) * mu0 / PI * sat(tau / 10.0));
+    let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, view.powder_w);
+    // Ambient: the sky through the column above (the volume's mean, smooth, never one noise
+    // look-up), and the ground's light from below.
+    return lit + ambient * diffuse_t(od_up) + 0.5 * bounce;
+}
+
+// The cloud's premultiplied radiance `col` (opacity `alpha`, opacity-weighted distance `dist`)
+// seen through the air in front of it (the march's last step): the clear air (the
+// aerial-perspective table) and the haze (Koschmieder) toward the cloud's distance.
+fn through_air(r: Ray, mu: f32, cloud: vec3<f32>, alpha: f32, dist: f32) -> vec3<f32> {
+    var col = cloud;
+    // The air's light is the table's for a clear sky: dimmed, as the haze's, under cloud.
+    let air = haze_light();
+    let ap = aerial(r.d, dist);
+    col = col * ap.a + ap.rgb * air * alpha;
+    let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
+    let haze = sky_seen(r.d) * air;
+    col = col * fog + haze * alpha * (1.0 - fog);
+    return col;
+}
+
+// The view ray's cloud: premultiplied radiance and opacity. In steps: its segments, then a
+// walk to each cloud sample (`next_cloud`), lit (`light_in`) and added, then the air in front.
+fn march(r: Ray, jitter: f32) -> vec4<f32> {
+    cloud_dist = 0.0;
+    let mu = dot(r.d, r.up);
+    let span = segments(r, mu);
+    if (!span.hit) {
+        return vec4<f32>(0.0);
+    }
     let sun_key = f.sun_is_key != 0u;
     let cos_t = dot(r.d, select(f.moon_dir, f.sun_dir, sun_key));
-    let g = f.hg_g;
-    let ph_fn = phase(cos_t, g);
-    let powder_w = remap(cos_t, -1.0, 1.0, 0.0, 1.0);
-    let max_steps = f.max_steps;
+    let view = ViewPhase(cos_t, phase(cos_t, f.hg_g), remap(cos_t, -1.0, 1.0, 0.0, 1.0));
     let early = f.early_exit;
-    let n_light = f.light_steps;
     let origin = r.up * (EARTH_R + r.h);
 
     var tr = 1.0;
     var col = vec3<f32>(0.0);
     var depth_w = 0.0;
-    var steps = 0u;
-    var second = false;
-    var st = seg_start(seg, jitter);
-    var t = st.x;
-    var seg_dt = st.y;
-    var stride = false;
-    var mult = 1.0;
-    var fine_left = 0u;
-    var finished = false;
-    // Whether the last sample was clear: a cloud met after clear air has its edge refined, by
-    // `refine` more halvings of [lo_t, t].
-    var prev_clear = true;
-    var refine = 0u;
-    var lo_t = 0.0;
-    // Two nested loops: the inner one walks to the next sample with cloud, looking up density
-    // only; the outer one lights that sample. On a GPU this is the same march as one loop. On a
-    // SIMD CPU driver, where every branch is executed under a mask, it keeps the light march
-    // and shading out of clear-air steps (measured: docs/performance.md).
+    var w = start_walk(span, jitter);
+    // Two nested loops: the inner one (next_cloud) walks to the next sample with cloud, looking
+    // up density only; this one lights that sample. On a GPU this is the same march as one
+    // loop. On a SIMD CPU driver, where every branch is executed under a mask, it keeps the
+    // light march and shading out of clear-air steps (measured: docs/performance.md).
     loop {
-        var sigma = 0.0;
-        var dt = 0.0;
-        var uv = vec2<f32>(0.0);
-        var h = 0.0;
-        var found = false;
-        loop {
-            if (t >= seg.y) {
-                if (second) {
-                    finished = true;
-                    break;
-                }
-                second = true;
-                seg = seg2;
-                st = seg_start(seg, jitter);
-                t = st.x;
-                seg_dt = st.y;
-                stride = false;
-                mult = 1.0;
-                fine_left = 0u;
-                continue;
-            }
-            if (refine == 0u) {
-                if (steps >= max_steps) {
-                    finished = true;
-                    break;
-                }
-                steps += 1u;
-                dt = min(clamp(f.step_min_m + f.step_growth * t, f.step_min_m, f.step_max_m), seg_dt);
-            }
-            // While refining, the point half-way between the last clear point and t (cloudy).
-            let te = select(t, 0.5 * (lo_t + t), refine > 0u);
-            let uv_e = sample_uv(origin + r.d * te);
-            if (refine == 0u && skip && coarse_empty(uv_e)) {
-                local_count[C_SKIPPED] += 1u;
-                t += max(dt, f.skip_m);
-                continue;
-            }
-            let h_e = altitude_at(r.h, mu, te);
-            // The one density call of the loop (a second call site, as a bisection loop of its
-            // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
-            let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
-            if (refine > 0u) {
-                refine -= 1u;
-                if (s_e > 0.0) {
-                    t = te;
-                    sigma = s_e;
-                    uv = uv_e;
-                    h = h_e;
-                } else {
-                    lo_t = te;
-                }
-                if (refine == 0u) {
-                    prev_clear = false;
-                    fine_left = FINE_AFTER_CLOUD;
-                    found = true;
-                    break;
-                }
-                continue;
-            }
-            uv = uv_e;
-            h = h_e;
-            sigma = s_e;
-            if (sigma > 0.0 && stride) {
-                // Met cloud on a long step: back up to the last clear sample and go on at the
-                // normal step, so the cloud's near edge is found at full resolution.
-                stride = false;
-                fine_left = FINE_AFTER_CLOUD;
-                t = max(t - dt * mult, seg.x);
-                mult = 1.0;
-                continue;
-            }
-            if (sigma > 0.0) {
-                if (prev_clear && t - dt > seg.x) {
-                    // Entering cloud from clear air: bisect the step for the edge (REFINE
-                    // halvings). A dense cloud is opaque within one step, so its colour is that
-                    // of the sample; at a fixed step that sample's depth inside the edge (and
-                    // so its light) would follow the step's phase, drawing contour rings over
-                    // the relief.
-                    refine = REFINE;
-                    lo_t = t - dt;
-                    continue;
-                }
-                prev_clear = false;
-                fine_left = FINE_AFTER_CLOUD;
-                found = true;
-                break;
-            }
-            prev_clear = true;
-            if (fine_left > 0u) {
-                fine_left -= 1u;
-            } else if (may_stride) {
-                stride = true;
-                mult = min(mult * 2.0, max_mult);
-            }
-            t += select(dt, mult * dt, stride);
-        }
-        if (!found) {
+        if (!next_cloud(&w, r, mu, origin, jitter)) {
             break;
         }
-        let pos = origin + r.d * t;
-        let np = r.np + r.d * t;
-        let up = normalize(pos);
-        var key = select(f.moon_dir, f.sun_dir, sun_key);
-        var key_col = select(f.moon_col, f.sun_col, sun_key);
-        var ambient = sky_radiance(f, up, up);
-        if (no_sky) {
-            key = up;
-            key_col = vec3<f32>(1.0);
-            ambient = vec3<f32>(0.3);
-        }
-        var nl = n_light;
-        if (lod && tr < 0.3) {
-            nl = max(1u, n_light / 2u);
-        }
-        // Toward the key light: the short march through the detailed cloud near the sample,
-        // then the whole column beyond it from the shadow stage's smooth volume (DESIGN §8).
-        var tau = light_depth(pos, h, np, key, nl);
-        var od_up = 0.0;
-        var bounce = vec3<f32>(0.0);
-        if (!no_sky) {
-            let reach = f.light_step0_m * (f32(nl) + 5.0);
-            let far = pos + key * reach;
-            tau += column_od(far, altitude_at(h, dot(key, up), reach)).x;
-            od_up = column_od(pos, h).y;
-            // Light the ground below sends back up, for the bases (its albedo, in its shadows).
-            let gr = ground_at(uv);
-            bounce = gr.yzw * ground_irradiance(up * (EARTH_R + gr.x), up, gr.x, ambient);
-        }
-        // Eq. 22's clamp as a floor under Beer (ac·exp(-τ/4)) so deep cloud does not go
-        // black, plus two octaves of Hillaire's multiple-scattering approximation
-        // (extinction, phase g and energy each halved per octave); deeper than those reach, the
-        // diffuse light a deck lets through (two-stream), leaving it as from a Lambertian base.
-        let powder = 1.0 - exp(-2.0 * tau);
-        var ms = max(exp(-tau), f.beer_clamp * exp(-0.25 * tau)) * ph_fn;
-        ms += 0.5 * exp(-0.5 * tau) * phase(cos_t, 0.5 * g);
-        ms += 0.25 * exp(-0.25 * tau) * phase(cos_t, 0.25 * g);
-        let mu0 = max(dot(key, up), 0.1);
-        // The octaves hold the first few optical depths (the relief's light and shade); the
-        // two-stream takes over by τ ≈ 10, where they have faded.
-        ms = max(ms, diffuse_t(tau * mu0) * mu0 / PI * sat(tau / 10.0));
-        let lit = key_col * SUN_I * ms * mix(2.0 * powder, 1.0, powder_w);
-        // Ambient: the sky through the column above (the volume's mean, smooth, never one noise
-        // look-up), and the ground's light from below.
-        let l_in = lit + ambient * diffuse_t(od_up) + 0.5 * bounce;
+        let l_in = light_in(r, origin, w.t, w.h, w.uv, tr, view);
         // Energy-conserving step (Hillaire 2016) with albedo 1: C += T (1 - a) L.
-        let a = exp(-sigma * dt);
+        let a = exp(-w.sigma * w.dt);
         col += tr * (1.0 - a) * l_in;
-        depth_w += tr * (1.0 - a) * t;
+        depth_w += tr * (1.0 - a) * w.t;
         tr *= a;
         if (tr < early) {
             // Opaque enough: call it opaque, and give the cut-off remainder to what was seen
@@ -307,31 +383,23 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
             col /= max(1.0 - tr, 1e-6);
             depth_w /= max(1.0 - tr, 1e-6);
             tr = 0.0;
-            finished = true;
+            w.finished = true;
             break;
         }
-        t += dt;
+        w.t += w.dt;
     }
-    if (!finished) {
+    if (!w.finished) {
         local_count[C_CUT] += 1u;
     }
-    local_count[C_STEPS] += steps;
+    local_count[C_STEPS] += w.steps;
     let alpha = 1.0 - tr;
     if (alpha <= 0.0) {
         return vec4<f32>(0.0);
     }
     let dist = depth_w / alpha;
     cloud_dist = dist;
-    if (!no_sky) {
-        // The clear air (the aerial-perspective table) and the haze (Koschmieder) toward the
-        // opacity-weighted cloud distance.
-        // The air's light is the table's for a clear sky: dimmed, as the haze's, under cloud.
-        let air = haze_light();
-        let ap = aerial(r.d, dist);
-        col = col * ap.a + ap.rgb * air * alpha;
-        let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
-        let haze = sky_seen(r.d) * air;
-        col = col * fog + haze * alpha * (1.0 - fog);
+    if (!feature(FLAG_NO_SKY)) {
+        col = through_air(r, mu, col, alpha, dist);
     }
     return vec4<f32>(col, alpha);
 }

@@ -42,7 +42,8 @@ fn key_through(tau: f32, mu0: f32) -> f32 {
     return max(exp(-tau), diffuse_t(tau * max(mu0, 0.1)));
 }
 
-// Ground albedo where the map has no ground (a dull land).
+// Ground albedo where the map has no ground (a dull land; render::ground's stand-in texel too,
+// shared through render::contract).
 const DEFAULT_ALBEDO: vec3<f32> = vec3<f32>(0.08, 0.10, 0.07);
 
 // The ground at region uv: (terrain height m, albedo rgb); sea level and the default outside

@@ -7,8 +7,9 @@
 use super::contract::{self, Binding, Resource};
 use super::frame::FrameUniforms;
 use super::gpu::Gpu;
-use super::march::bind;
+use super::pipeline::{bind, entry_pipeline};
 use super::shader;
+use super::texture::{texture_2d, texture_3d};
 
 pub const LUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const TRANSMITTANCE_SIZE: (u32, u32) = (256, 64);
@@ -71,8 +72,32 @@ pub struct AtmospherePass {
     pub builds: u32,
 }
 
+/// The pipelines of the four entry points, each with the groups it reads (`layouts`' first
+/// two, three or four): the transmittance, multiple-scattering, sky-view and aerial tables.
+fn pipelines(
+    dev: &wgpu::Device,
+    layouts: &[wgpu::BindGroupLayout; 4],
+) -> [wgpu::ComputePipeline; 4] {
+    let module = shader::module(dev, "atmosphere", shader::ATMOSPHERE);
+    let pipeline = |entry: &str, groups: usize| {
+        let all = layouts.each_ref().map(Some);
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(entry),
+            bind_group_layouts: &all[..groups],
+            immediate_size: 0,
+        });
+        entry_pipeline(dev, entry, &layout, &module, entry, &[])
+    };
+    [
+        pipeline("transmittance", 2),
+        pipeline("multiscatter", 3),
+        pipeline("sky_view", 3),
+        pipeline("aerial", 4),
+    ]
+}
+
 fn table(dev: &wgpu::Device, label: &str, size: (u32, u32)) -> wgpu::Texture {
-    super::texture_2d(
+    texture_2d(
         dev,
         label,
         size,
@@ -86,46 +111,18 @@ impl AtmospherePass {
         let dev = &gpu.device;
         let stage = wgpu::ShaderStages::COMPUTE;
         let layouts = [0, 1, 2, 3].map(|g| contract::layout(dev, "atmosphere", BINDINGS, g, stage));
-        let module = shader::module(dev, "atmosphere", shader::ATMOSPHERE);
-        let pipeline = |entry: &str, groups: usize| {
-            let all = layouts.each_ref().map(Some);
-            let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(entry),
-                bind_group_layouts: &all[..groups],
-                immediate_size: 0,
-            });
-            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let transmittance = pipeline("transmittance", 2);
-        let multiscatter = pipeline("multiscatter", 3);
-        let sky_view = pipeline("sky_view", 3);
-        let aerial = pipeline("aerial", 4);
+        let [transmittance, multiscatter, sky_view, aerial] = pipelines(dev, &layouts);
         let trans = table(dev, "transmittance table", TRANSMITTANCE_SIZE);
         let ms = table(dev, "multiple-scattering table", MULTISCATTER_SIZE);
         let sky = table(dev, "sky-view table", SKY_VIEW_SIZE);
         let stand_in = table(dev, "multiple-scattering stand-in", (1, 1));
-        let (aw, ah, ad) = AERIAL_SIZE;
-        let aerial_table = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("aerial-perspective table"),
-            size: wgpu::Extent3d {
-                width: aw,
-                height: ah,
-                depth_or_array_layers: ad,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: LUT_FORMAT,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let aerial_table = texture_3d(
+            dev,
+            "aerial-perspective table",
+            AERIAL_SIZE,
+            LUT_FORMAT,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("atmosphere tables"),

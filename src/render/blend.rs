@@ -20,7 +20,7 @@ use stratus_ingest::structure::{sample_to_wind, MapStructure};
 
 use super::gpu::Gpu;
 use super::structure::{Prepared as StructurePrepared, StructureInfo};
-use super::weather::{map_texture, write};
+use super::texture::{map_texture, write};
 
 /// The blend at the scene's time, as the frame uniforms take it.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -107,13 +107,13 @@ pub fn texture(gpu: &Gpu) -> wgpu::Texture {
         .iter()
         .flat_map(|&[r, g]| [q(r), q(g), 0, 255])
         .collect();
-    let tex = super::weather::map_texture(
+    let tex = super::texture::map_texture(
         gpu,
         "cumulus cells",
         (SIZE, SIZE),
         wgpu::TextureFormat::Rgba8Unorm,
     );
-    super::weather::write(gpu, &tex, &texels, 4);
+    super::texture::write(gpu, &tex, &texels, 4);
     tex
 }
 

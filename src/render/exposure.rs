@@ -5,9 +5,9 @@
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::bind;
+use super::pipeline::bind;
+use super::scene::{SCENE_BINDINGS, SCENE_GROUP};
 use super::shader;
-use super::shadow::{SCENE_BINDINGS, SCENE_GROUP};
 
 crate::gpu_struct! {
     /// The stage's settings for a frame (`ExposureParams` in shaders/common.wgsl).
@@ -152,7 +152,7 @@ impl ExposurePass {
         cloud: &wgpu::TextureView,
         scene: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
-        super::march::bind_frame_textures(
+        super::pipeline::bind_frame_textures(
             &gpu.device,
             "exposure: target",
             &self.target_layout,

@@ -5,8 +5,9 @@ use glam::DVec3;
 
 use super::camera::View;
 use super::preset::MarchParams;
+use super::settings::Settings;
 use super::weather::{Band, WeatherMap};
-use super::{RenderError, Settings};
+use super::RenderError;
 use crate::sun::Sky;
 use stratus_ingest::region::Region;
 
@@ -16,9 +17,15 @@ pub const SHAPE_PERIOD_M: f64 = 24_000.0;
 pub const DETAIL_PERIOD_M: f64 = 2_000.0;
 /// Sun intensity in the sky model's units (`SUN_I` in shaders/common.wgsl).
 pub const SUN_INTENSITY: f64 = 20.0;
-/// The clear air's extinction at sea level at 550 nm (1/m): atmosphere.wgsl's Rayleigh (green,
-/// 13.6e-6) and Mie (4.4e-6) coefficients. A visibility past 3.912/this (≈ 217 km) has no haze.
-pub const CLEAR_AIR_EXTINCTION: f64 = 13.558e-6 + 4.40e-6;
+/// The clear air's Rayleigh scattering at sea level in green (550 nm, 1/m): `RAYLEIGH_GREEN` in
+/// atmosphere.wgsl (its `RAYLEIGH`'s middle term), shared through render::contract.
+pub const RAYLEIGH_GREEN: f64 = 13.558e-6;
+/// The background aerosol's (Mie) extinction at sea level (1/m): `MIE_EXTINCT` in
+/// atmosphere.wgsl.
+pub const MIE_EXTINCTION: f64 = 4.40e-6;
+/// The clear air's extinction at sea level at 550 nm (1/m): atmosphere.wgsl's Rayleigh (green)
+/// and Mie coefficients. A visibility past 3.912/this (≈ 217 km) has no haze.
+pub const CLEAR_AIR_EXTINCTION: f64 = RAYLEIGH_GREEN + MIE_EXTINCTION;
 
 crate::gpu_struct! {
     /// The per-frame uniforms: `struct Frame` in shaders/common.wgsl, field for field (the
@@ -269,87 +276,118 @@ fn march_flags(p: &MarchParams) -> u32 {
     .fold(0, |acc, (_, bit)| acc | bit)
 }
 
+/// A frame's uniforms, in steps: its layers, its camera, its lights and exposure, the march's
+/// parameters, and the cloud's motion (the blend of two steps, the drift).
 pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
-    let s = inp.settings;
-    let p: MarchParams = s.march.effective();
-    let sky = inp.sky;
-    let r = inp.region;
+    let p: MarchParams = inp.settings.march.effective();
+    let mut u = FrameUniforms {
+        flags: march_flags(&p),
+        ..Default::default()
+    };
+    layers(&mut u, inp);
+    let exposure_base = camera(&mut u, inp)?;
+    lights(&mut u, &inp.sky, inp.settings, exposure_base);
+    march(&mut u, inp, &p);
+    motion(&mut u, inp);
+    Ok(u)
+}
 
-    let mut u = FrameUniforms::default();
-    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
-    let st = &inp.weather.structure.info;
-    u.flags = march_flags(&p);
+/// The drawn layers' bounds and density scales, the shell around them, and the flags of what
+/// the map holds (a frame's layers).
+fn layers(u: &mut FrameUniforms, inp: &FrameInput<'_>) {
     (u.tower_base_m, u.tower_top_m) = (1.0e6, 0.0);
-    if st.present {
-        // Each column has its own base and top: a layer's bounds are its envelope over the
-        // region, and the density scale for its thickness is the column's (march.wgsl).
-        u.flags |= flags::STRUCTURE;
-        for k in (0..3).filter(|&k| s.layers_on[k]) {
-            if let Some((base, top)) = st.envelopes[k] {
-                u.layer_base[k] = base;
-                u.layer_top[k] = top;
-                u.layer_scale[k] = 1.0;
-                lo = lo.min(base);
-                hi = hi.max(top);
-            }
-        }
-        // Towers and streaks only where the map has them and a layer that holds them is drawn.
-        if let Some((base, top)) = st.towers.filter(|_| u.layer_scale.iter().any(|&v| v > 0.0)) {
-            u.flags |= flags::TOWERS;
-            (u.tower_base_m, u.tower_top_m) = (base, top);
-            lo = lo.min(base);
-            hi = hi.max(top);
-        }
-        if st.cells && u.layer_scale.iter().any(|&v| v > 0.0) {
-            u.flags |= flags::CELLS;
-        }
-        // The high layer's wind streaks cirrus and carries the anvils of cumulonimbus downwind.
-        let towers = u.flags & flags::TOWERS != 0;
-        if (st.streaks || towers) && (s.layers_on[1] || s.layers_on[2]) {
-            if st.streaks {
-                u.flags |= flags::STREAKS;
-            }
-            let wind = s.streak_wind.unwrap_or(st.mean_wind);
-            let unit = |w: [f64; 2]| {
-                let n = w[0].hypot(w[1]);
-                if n < 1.0 {
-                    [0.0; 2]
-                } else {
-                    [(w[0] / n) as f32, (w[1] / n) as f32]
-                }
-            };
-            let (high, mid) = (unit(wind[2]), unit(wind[1]));
-            u.streak_dir = [high[0], high[1], mid[0], mid[1]];
-        }
-        let (lat, lon) = r.centre();
-        u.region_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
-        let (east, north, _) = super::camera::enu_basis(lat, lon);
-        u.region_east = east.as_vec3().to_array();
-        u.region_north_dir = north.as_vec3().to_array();
-        u.st_scale = st.uv_scale;
-        u.st_offset = st.uv_offset;
+    let (mut lo, mut hi) = if inp.weather.structure.info.present {
+        structure_layers(u, inp)
     } else {
-        let bands = disjoint_bands(&inp.weather.bands, s.layers_on);
-        for (k, band) in bands.iter().enumerate() {
-            if let Some((base, top)) = *band {
-                u.layer_base[k] = base;
-                u.layer_top[k] = top;
-                u.layer_scale[k] = thickness_scale(top - base);
-                lo = lo.min(base);
-                hi = hi.max(top);
-            }
-        }
-    }
+        band_layers(u, inp)
+    };
     if lo > hi {
         // No layer to draw: an empty shell far above everything.
         (lo, hi) = (1.0e6, 1.0e6);
     }
     u.shell_base_m = lo;
     u.shell_top_m = hi;
-    u.coverage_mul = s.coverage_mul;
+    u.coverage_mul = inp.settings.coverage_mul;
+}
 
-    let exposure_base;
-    match inp.view {
+/// The layers of a map with per-column structure: their envelopes, the towers, cells and
+/// streaks it holds, and the region's frame they are measured in. Returns the lowest base and
+/// highest top drawn.
+fn structure_layers(u: &mut FrameUniforms, inp: &FrameInput<'_>) -> (f32, f32) {
+    let s = inp.settings;
+    let st = &inp.weather.structure.info;
+    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    // Each column has its own base and top: a layer's bounds are its envelope over the
+    // region, and the density scale for its thickness is the column's (march.wgsl).
+    u.flags |= flags::STRUCTURE;
+    for k in (0..3).filter(|&k| s.layers_on[k]) {
+        if let Some((base, top)) = st.envelopes[k] {
+            u.layer_base[k] = base;
+            u.layer_top[k] = top;
+            u.layer_scale[k] = 1.0;
+            lo = lo.min(base);
+            hi = hi.max(top);
+        }
+    }
+    // Towers and streaks only where the map has them and a layer that holds them is drawn.
+    if let Some((base, top)) = st.towers.filter(|_| u.layer_scale.iter().any(|&v| v > 0.0)) {
+        u.flags |= flags::TOWERS;
+        (u.tower_base_m, u.tower_top_m) = (base, top);
+        lo = lo.min(base);
+        hi = hi.max(top);
+    }
+    if st.cells && u.layer_scale.iter().any(|&v| v > 0.0) {
+        u.flags |= flags::CELLS;
+    }
+    // The high layer's wind streaks cirrus and carries the anvils of cumulonimbus downwind.
+    let towers = u.flags & flags::TOWERS != 0;
+    if (st.streaks || towers) && (s.layers_on[1] || s.layers_on[2]) {
+        if st.streaks {
+            u.flags |= flags::STREAKS;
+        }
+        let wind = s.streak_wind.unwrap_or(st.mean_wind);
+        let unit = |w: [f64; 2]| {
+            let n = w[0].hypot(w[1]);
+            if n < 1.0 {
+                [0.0; 2]
+            } else {
+                [(w[0] / n) as f32, (w[1] / n) as f32]
+            }
+        };
+        let (high, mid) = (unit(wind[2]), unit(wind[1]));
+        u.streak_dir = [high[0], high[1], mid[0], mid[1]];
+    }
+    let (lat, lon) = inp.region.centre();
+    u.region_origin = super::camera::ecef(lat, lon, 0.0).as_vec3().to_array();
+    let (east, north, _) = super::camera::enu_basis(lat, lon);
+    u.region_east = east.as_vec3().to_array();
+    u.region_north_dir = north.as_vec3().to_array();
+    u.st_scale = st.uv_scale;
+    u.st_offset = st.uv_offset;
+    (lo, hi)
+}
+
+/// The layers of a map of three bands: made disjoint, each scaled for its thickness. Returns
+/// the lowest base and highest top drawn.
+fn band_layers(u: &mut FrameUniforms, inp: &FrameInput<'_>) -> (f32, f32) {
+    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    let bands = disjoint_bands(&inp.weather.bands, inp.settings.layers_on);
+    for (k, band) in bands.iter().enumerate() {
+        if let Some((base, top)) = *band {
+            u.layer_base[k] = base;
+            u.layer_top[k] = top;
+            u.layer_scale[k] = thickness_scale(top - base);
+            lo = lo.min(base);
+            hi = hi.max(top);
+        }
+    }
+    (lo, hi)
+}
+
+/// The camera (a perspective, or the score's top-down view just above the shell's top, which
+/// [`layers`] set). Returns the exposure the view starts from.
+fn camera(u: &mut FrameUniforms, inp: &FrameInput<'_>) -> Result<f64, RenderError> {
+    Ok(match inp.view {
         View::Perspective(cam) => {
             cam.validate()?;
             let b = cam.basis();
@@ -366,22 +404,26 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
                 b.position.y.rem_euclid(SHAPE_PERIOD_M),
                 b.position.z.rem_euclid(SHAPE_PERIOD_M),
             ));
-            exposure_base = auto_exposure(&sky);
+            auto_exposure(&inp.sky)
         }
         View::TopDown => {
             u.flags |= flags::NO_SKY;
-            let (lat, lon) = r.centre();
+            let (lat, lon) = inp.region.centre();
             let up = crate::sun::up_at(lat, lon);
             u.cam_up = v3(up);
-            u.cam_alt_m = hi + 1000.0;
+            u.cam_alt_m = u.shell_top_m + 1000.0;
             u.cam_fwd = v3(-up);
             u.tan_half_fov = 1.0;
             u.cam_right = v3(DVec3::X);
             u.aspect = 1.0;
             u.cam_view_up = v3(DVec3::Y);
-            exposure_base = 1.0;
+            1.0
         }
-    }
+    })
+}
+
+/// The Sun and Moon, the exposure and the haze (a frame's sky).
+fn lights(u: &mut FrameUniforms, sky: &Sky, s: &Settings, exposure_base: f64) {
     u.shape_period_m = SHAPE_PERIOD_M as f32;
     u.detail_period_m = DETAIL_PERIOD_M as f32;
     u.sun_dir = v3(sky.sun.dir);
@@ -401,6 +443,11 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     // table) is taken off, so what is left is the haze's.
     u.haze_beta = (3.912 / visibility - CLEAR_AIR_EXTINCTION).max(0.0) as f32;
     u.haze_cutoff_m = (5.0 * visibility).min(2.0e6) as f32;
+}
+
+/// The region, the look and the march's steps and size (a frame's march).
+fn march(u: &mut FrameUniforms, inp: &FrameInput<'_>, p: &MarchParams) {
+    let (s, r) = (inp.settings, inp.region);
     u.region_south = r.south as f32;
     u.region_north = r.north as f32;
     u.region_west = r.west as f32;
@@ -422,16 +469,20 @@ pub fn build(inp: &FrameInput<'_>) -> Result<FrameUniforms, RenderError> {
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;
     // Every pixel marched; a reprojected frame takes one per cell (render::reproject).
     u.subset_n = 1.0;
+}
+
+/// The blend of two forecast steps and each layer's drift (the cloud's motion).
+fn motion(u: &mut FrameUniforms, inp: &FrameInput<'_>) {
+    let s = inp.settings;
     if let Some(b) = inp.weather.blend.now {
         u.flags |= flags::BLEND;
         (u.blend_w, u.blend_back_s, u.blend_ahead_s) = (b.w, b.back_s, b.ahead_s);
     }
-    [u.drift_low, u.drift_mid, u.drift_high] = drift(r, &s.drift_m);
+    [u.drift_low, u.drift_mid, u.drift_high] = drift(inp.region, &s.drift_m);
     let cell = |k: usize| s.drift_m[k].map(|v| v.rem_euclid(super::cells::PERIOD_M as f64) as f32);
     let (low, mid, high) = (cell(0), cell(1), cell(2));
     u.cell_drift = [low[0], low[1], mid[0], mid[1]];
     u.cell_drift_high = [high[0], high[1], 0.0, 0.0];
-    Ok(u)
 }
 
 /// Each layer's noise drift (east, north m) as an ECEF offset along the region centre's east

@@ -11,8 +11,16 @@ const WATER: [f32; 3] = [0.03, 0.05, 0.08];
 const ICE: [f32; 3] = [0.65, 0.70, 0.75];
 const SNOW: [f32; 3] = [0.80, 0.82, 0.85];
 const LAND_TINT: [f32; 3] = [0.95, 1.05, 0.75];
-/// Land where the file gives no albedo.
+/// The broadband albedo of snow-free land where the file gives none: with [`LAND_TINT`] about
+/// [`DEFAULT_ALBEDO`], the dull land drawn where the map has no ground. Not ingest's
+/// `ground::inputs::LAND_ALBEDO` (0.20), the default the map's albedo field is filled with
+/// where the file has no albedo: the renderer does not read that field then (`texels`), so the
+/// same land is drawn at 0.09 without a file albedo and at the file's (often about 0.2) with
+/// one. Kept as it is: changing it changes the pictures (an open question of issue 29).
 const LAND_ALBEDO: f32 = 0.09;
+/// The ground's albedo (linear RGB) where the map has no ground: `DEFAULT_ALBEDO` in
+/// shaders/scene.wgsl (render::contract checks the two agree).
+pub const DEFAULT_ALBEDO: [f32; 3] = [0.08, 0.10, 0.07];
 
 fn mix3(a: [f32; 3], b: [f32; 3], w: f32) -> [f32; 3] {
     [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * w)
@@ -57,20 +65,23 @@ pub fn upload(gpu: &super::Gpu, g: Option<&Ground>) -> (wgpu::Texture, [f32; 4])
             (t, w, h, [su, sv, ou, ov])
         }
         None => (
-            vec![[0.0, 0.08, 0.10, 0.07].map(half::f16::from_f32)],
+            vec![
+                [0.0, DEFAULT_ALBEDO[0], DEFAULT_ALBEDO[1], DEFAULT_ALBEDO[2]]
+                    .map(half::f16::from_f32),
+            ],
             1,
             1,
             [1.0, 1.0, 0.0, 0.0],
         ),
     };
-    let tex = super::texture_2d(
+    let tex = super::texture::texture_2d(
         &gpu.device,
         "ground",
         (w, h),
         FORMAT,
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
     );
-    super::weather::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
+    super::texture::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
     (tex, uv)
 }
 

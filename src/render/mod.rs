@@ -1,5 +1,7 @@
 //! The wgpu cloud renderer (DESIGN §2–4): a CloudMap becomes volumetric cloud shells over a
-//! spherical Earth, lit by the Sun or Moon of the forecast's valid time.
+//! spherical Earth, lit by the Sun or Moon of the forecast's valid time. This module holds the
+//! [`Renderer`], which keeps the resources by lifetime and records a frame in steps (light,
+//! march, present).
 //!
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
 //! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
@@ -8,9 +10,13 @@
 //! frame: the window, `flight`), `section` (the march's cloud on a vertical curtain). What the
 //! stages read: `weather` uploads the map (`blend` a second forecast step), `structure` its
 //! per-column base, top, type and wind, `ground` the terrain and surface, `cells` the cumulus
-//! cell field, `profile` the per-type vertical profiles. Around them: `frame` forms the
-//! uniforms, `camera` holds the geometry, `preset` the quality levels, `gpu` the adapter,
-//! `shader` assembles the WGSL, `contract` the Rust↔WGSL contract, `stats` a frame's cost,
+//! cell field, `profile` the per-type vertical profiles, `scene` the group the lighting and
+//! showing stages share (light volume, sky tables, ground). The shared plumbing: `pipeline`
+//! (pipelines, feature variants, bind groups), `texture` (texture helpers), `contract` (the
+//! Rust↔WGSL contract: shared structs, bindings, layouts), `shader` (assembles the WGSL).
+//! Around them: `settings` (a frame's settings and their validation), `targets` (the render
+//! targets, by the output size's lifetime), `frame` forms the uniforms, `camera` holds the
+//! geometry, `preset` the quality levels, `gpu` the adapter, `stats` a frame's cost,
 //! `readback` brings pictures back to the CPU.
 
 pub mod atmosphere;
@@ -24,22 +30,25 @@ pub mod gpu;
 pub mod ground;
 pub mod march;
 pub mod noise;
+pub mod pipeline;
 pub mod present;
 pub mod preset;
 pub mod profile;
 pub mod readback;
 pub mod reproject;
+pub mod scene;
 pub mod section;
+pub mod settings;
 pub mod shader;
 pub mod shadow;
 pub mod stats;
 pub mod structure;
+mod targets;
+pub mod texture;
 pub mod weather;
 
 use std::time::Instant;
 
-use chrono::{DateTime, Utc};
-use glam::DVec3;
 use serde::Serialize;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::meta::CloudMapMeta;
@@ -47,9 +56,11 @@ use stratus_ingest::meta::CloudMapMeta;
 pub use camera::{Camera, View};
 pub use gpu::Gpu;
 pub use preset::{MarchParams, Preset, Shortcuts};
+pub use settings::{defaults, Reprojection, Settings};
 pub use stats::{FrameStats, Stats};
 
 use crate::sun::Sky;
+use targets::{MarchStep, Targets};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
@@ -74,164 +85,6 @@ pub enum RenderError {
     Gpu(String),
     #[error("reading back from the GPU: {0}")]
     Readback(String),
-}
-
-/// Everything about a frame except where the camera is.
-#[derive(Clone, Debug)]
-pub struct Settings {
-    pub march: MarchParams,
-    /// UTC time the Sun and Moon are placed for.
-    pub time: DateTime<Utc>,
-    /// Sun direction in the camera's local east/north/up frame, instead of the computed one.
-    pub sun_override: Option<DVec3>,
-    /// Low, middle, high layers drawn.
-    pub layers_on: [bool; 3],
-    pub coverage_mul: f32,
-    pub density_mul: f32,
-    /// Extinction per unit of DESIGN's density d (1/m).
-    pub extinction: f32,
-    /// Henyey–Greenstein asymmetry g of the dual-lobe phase.
-    pub hg_g: f32,
-    /// Beer clamp ac (eq. 22) in 0..1: the floor ac·exp(−τ/4) under exp(−τ).
-    pub beer_clamp: f32,
-    /// Exposure in stops: over the scene-adapted exposure when `exposure_auto`, else over
-    /// [`frame::FIXED_EXPOSURE`] (fixed, for luminance comparisons).
-    pub exposure_ev: f64,
-    /// The exposure adapts to the scene (metered by the exposure stage).
-    pub exposure_auto: bool,
-    /// Share of the way (in stops) toward the metered exposure a frame goes: 1 for a single
-    /// picture, less in the window so the eye adapts over a second or two.
-    pub exposure_rate: f32,
-    /// Meteorological visibility (m) for the aerial haze (Koschmieder: β = 3.912 / V).
-    pub visibility_m: f64,
-    pub frame_index: u32,
-    /// How far each layer's noise has drifted with its wind since the series' reference time
-    /// (east, north m; low, middle, high): zero for a plain map (crate::timeline).
-    pub drift_m: [[f64; 2]; 3],
-    /// The wind cirrus is streaked along, per layer (east, north m/s; low, middle, high): one
-    /// direction for the whole region, fixed for a flight through a series
-    /// (`Timeline::streak_wind`); `None` takes the map's mean wind.
-    pub streak_wind: Option<[[f64; 2]; 3]>,
-    /// Whether a perspective frame marches a subset of its pixels and reprojects the rest from
-    /// the previous frame (render::reproject): the window and `flight`; a single picture
-    /// marches every pixel.
-    pub reprojection: Reprojection,
-}
-
-/// How frames are made from the ones before them (render::reproject).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Reprojection {
-    /// Every pixel marched, every frame.
-    #[default]
-    Off,
-    /// One pixel of each subset cell marched, the rest reprojected. Where the history does not
-    /// fit (the first frame, a teleport, a new map), `full_reset` marches every pixel that frame;
-    /// else the fresh subset, upsampled, stands in until the history fills again.
-    On { full_reset: bool },
-}
-
-/// The look's defaults, defined once: [`Settings::new`], the command line and the window's
-/// panel start from these.
-pub mod defaults {
-    pub const COVERAGE_MUL: f32 = 1.0;
-    pub const DENSITY_MUL: f32 = 1.0;
-    /// Extinction per unit of DESIGN's density d (1/m).
-    pub const EXTINCTION: f32 = 0.04;
-    pub const HG_G: f32 = 0.6;
-    pub const BEER_CLAMP: f32 = 0.5;
-    pub const EXPOSURE_EV: f64 = 0.0;
-    pub const VISIBILITY_M: f64 = 60_000.0;
-}
-
-impl Settings {
-    pub fn new(preset: Preset, time: DateTime<Utc>) -> Settings {
-        Settings {
-            march: preset.params(),
-            time,
-            sun_override: None,
-            layers_on: [true; 3],
-            coverage_mul: defaults::COVERAGE_MUL,
-            density_mul: defaults::DENSITY_MUL,
-            extinction: defaults::EXTINCTION,
-            hg_g: defaults::HG_G,
-            beer_clamp: defaults::BEER_CLAMP,
-            exposure_ev: defaults::EXPOSURE_EV,
-            exposure_auto: true,
-            exposure_rate: 1.0,
-            visibility_m: defaults::VISIBILITY_M,
-            frame_index: 0,
-            drift_m: [[0.0; 2]; 3],
-            streak_wind: None,
-            reprojection: Reprojection::Off,
-        }
-    }
-
-    pub fn validate(&self) -> Result<(), RenderError> {
-        let bad = |m: String| Err(RenderError::BadSetting(m));
-        let finite_nonneg = [
-            ("coverage multiplier", self.coverage_mul),
-            ("density multiplier", self.density_mul),
-            ("extinction", self.extinction),
-        ];
-        for (name, v) in finite_nonneg {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} {v} must be a finite number ≥ 0"));
-            }
-        }
-        if !(self.hg_g > -0.99 && self.hg_g < 0.99) {
-            return bad(format!("HG g {} must be inside -0.99..0.99", self.hg_g));
-        }
-        if !(0.0..=1.0).contains(&self.beer_clamp) {
-            return bad(format!("Beer clamp ac {} must be in 0..1", self.beer_clamp));
-        }
-        if !(self.exposure_rate > 0.0 && self.exposure_rate <= 1.0) {
-            return bad(format!(
-                "exposure adaptation rate {} must be in (0, 1]",
-                self.exposure_rate
-            ));
-        }
-        if !self.exposure_ev.is_finite() || self.exposure_ev.abs() > 30.0 {
-            return bad(format!(
-                "exposure {} EV must be within ±30",
-                self.exposure_ev
-            ));
-        }
-        if !(self.visibility_m.is_finite() && self.visibility_m > 0.0) {
-            return bad(format!("visibility {} m must be > 0", self.visibility_m));
-        }
-        let m = &self.march;
-        if !(m.step_min_m >= 1.0 && m.step_max_m >= m.step_min_m && m.step_max_m <= 1.0e5) {
-            return bad(format!(
-                "steps {}..{} m must satisfy 1 ≤ min ≤ max ≤ 100000",
-                m.step_min_m, m.step_max_m
-            ));
-        }
-        if !(m.step_growth.is_finite() && m.step_growth >= 0.0)
-            || m.max_steps == 0
-            || m.max_steps > 100_000
-        {
-            return bad("step growth must be ≥ 0 and max steps in 1..=100000".into());
-        }
-        if !(m.subset.is_power_of_two() && m.subset <= 8) {
-            return bad(format!(
-                "reprojection subset {} must be 1, 2, 4 or 8 pixels a side",
-                m.subset
-            ));
-        }
-        if m.light_steps == 0
-            || m.light_steps > 16
-            || m.light_reach_m.is_nan()
-            || m.light_reach_m <= 0.0
-        {
-            return bad("light steps must be in 1..=16 with a positive reach".into());
-        }
-        if let Some(s) = self.sun_override {
-            if !s.is_finite() || s.length() < 1e-9 {
-                return Err(RenderError::BadSun("has zero length".into()));
-            }
-        }
-        Ok(())
-    }
 }
 
 /// GPU time per pass from timestamp queries where the adapter has them, and wall time.
@@ -270,194 +123,6 @@ impl Output {
         image::RgbaImage::from_raw(self.width, self.height, self.pixels.clone())
             .unwrap_or_else(|| image::RgbaImage::new(self.width, self.height))
     }
-}
-
-/// One full-size frame's textures: what the march (or the reproject stage) writes and the
-/// exposure and present stages read.
-struct FrameSet {
-    /// Premultiplied linear cloud radiance and opacity.
-    cloud: wgpu::Texture,
-    /// The background's linear radiance and each pixel's distance (km).
-    scene: wgpu::Texture,
-    /// The march writing this set at full size (every pixel).
-    march_bind: wgpu::BindGroup,
-    present_bind: wgpu::BindGroup,
-    exposure_bind: wgpu::BindGroup,
-}
-
-impl FrameSet {
-    fn new(r: Stages<'_>, size: (u32, u32), cut_mask: &wgpu::Buffer) -> FrameSet {
-        let (cloud, scene) = frame_textures(r.gpu, size);
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let (cv, sv) = (view(&cloud), view(&scene));
-        FrameSet {
-            march_bind: r.march.bind_target(r.gpu, &cv, &sv, cut_mask),
-            present_bind: r.present.bind_target(r.gpu, &cv, &sv),
-            exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
-            cloud,
-            scene,
-        }
-    }
-}
-
-/// The cloud and scene textures of one frame (or subset march) of `size`.
-fn frame_textures(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::Texture) {
-    let tex = |label| {
-        texture_2d(
-            &gpu.device,
-            label,
-            size,
-            march::CLOUD_FORMAT,
-            wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-        )
-    };
-    (tex("cloud"), tex("scene"))
-}
-
-/// The stages that bind a frame's textures.
-#[derive(Clone, Copy)]
-struct Stages<'a> {
-    gpu: &'a Gpu,
-    march: &'a march::MarchPass,
-    present: &'a present::PresentPass,
-    exposure: &'a exposure::ExposurePass,
-    reproject: &'a reproject::ReprojectPass,
-}
-
-/// A reprojected frame's extra textures: the subset march and a second full-size frame, so
-/// each frame is made from the one before (ping-pong).
-struct History {
-    /// Subset cell side (px).
-    n: u32,
-    /// The subset march: one texel per cell.
-    fresh_march_bind: wgpu::BindGroup,
-    cells: (u32, u32),
-    /// The second full-size frame (the first is `Targets::frame`).
-    other: FrameSet,
-    /// `reproject_bind[k]` writes frame k from the fresh subset and frame 1 − k.
-    reproject_bind: [wgpu::BindGroup; 2],
-    /// The frame the last reprojected frame wrote, and what it was made of.
-    shown: usize,
-    last: Option<reproject::FrameKey>,
-    /// Reprojected frames made: the subset order's position.
-    frames: u32,
-    /// Why the last frame did not use its history (`None`: it did).
-    last_reset: Option<&'static str>,
-}
-
-impl History {
-    fn new(
-        r: Stages<'_>,
-        (width, height): (u32, u32),
-        n: u32,
-        first: &FrameSet,
-        cut_mask: &wgpu::Buffer,
-    ) -> History {
-        let cells = (width.div_ceil(n), height.div_ceil(n));
-        let (fc, fs) = frame_textures(r.gpu, cells);
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let other = FrameSet::new(r, (width, height), cut_mask);
-        let fresh = [view(&fc), view(&fs)];
-        let sets = [
-            [view(&first.cloud), view(&first.scene)],
-            [view(&other.cloud), view(&other.scene)],
-        ];
-        let reproject_bind = [0, 1].map(|k| {
-            let (h, o) = (&sets[1 - k], &sets[k]);
-            r.reproject.bind_target(
-                r.gpu,
-                [&fresh[0], &fresh[1]],
-                [&h[0], &h[1]],
-                [&o[0], &o[1]],
-            )
-        });
-        History {
-            n,
-            fresh_march_bind: r.march.bind_target(r.gpu, &fresh[0], &fresh[1], cut_mask),
-            cells,
-            other,
-            reproject_bind,
-            shown: 0,
-            last: None,
-            frames: 0,
-            last_reset: Some("first frame"),
-        }
-    }
-}
-
-/// Everything whose lifetime is the output size: made again only when the size changes.
-struct Targets {
-    width: u32,
-    height: u32,
-    /// The full-size frame a frame that marches every pixel writes.
-    frame: FrameSet,
-    /// Headless output; made on first use.
-    color: Option<wgpu::Texture>,
-    /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
-    cut_mask: wgpu::Buffer,
-    /// Made on the first reprojected frame at this size.
-    history: Option<History>,
-    /// Whether the last frame was reprojected (it then shows `history`'s frame `shown`).
-    reprojected: bool,
-    /// Whether the last frame marched a subset of its pixels (its cut mask is per cell).
-    subset_marched: bool,
-}
-
-impl Targets {
-    fn new(r: Stages<'_>, (width, height): (u32, u32)) -> Targets {
-        let cut_mask = march::cut_mask_buffer(r.gpu, width, height);
-        Targets {
-            width,
-            height,
-            frame: FrameSet::new(r, (width, height), &cut_mask),
-            color: None,
-            cut_mask,
-            history: None,
-            reprojected: false,
-            subset_marched: false,
-        }
-    }
-
-    /// The frame the last encoded frame showed.
-    fn shown(&self) -> &FrameSet {
-        match &self.history {
-            Some(h) if self.reprojected && h.shown == 1 => &h.other,
-            _ => &self.frame,
-        }
-    }
-}
-
-/// How a reprojected frame is made (`Renderer::plan_reprojection`).
-struct ReprojectionPlan {
-    /// The history does not fit and every pixel is marched.
-    full: bool,
-    params: reproject::ReprojectParams,
-}
-
-/// A single-level 2D texture.
-pub(crate) fn texture_2d(
-    dev: &wgpu::Device,
-    label: &str,
-    (width, height): (u32, u32),
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
 }
 
 /// How many GPU resources of each lifetime the renderer has made so far: a settings change
@@ -504,7 +169,7 @@ impl Renderer {
     pub fn new(gpu: Gpu, map: &CloudMap) -> Renderer {
         let noise = noise::NoiseTextures::generate(&gpu);
         let weather = weather::WeatherMap::upload(&gpu, map);
-        let scene_layout = shadow::scene_layout(&gpu.device);
+        let scene_layout = scene::scene_layout(&gpu.device);
         let march = march::MarchPass::new(&gpu, &noise, &scene_layout);
         let exposure = exposure::ExposurePass::new(&gpu, &march.uniforms, &scene_layout);
         let present =
@@ -512,16 +177,15 @@ impl Renderer {
         let map_bind = march.bind_map(&gpu, &weather);
         let atmosphere = atmosphere::AtmospherePass::new(&gpu, &march.uniforms);
         let reproject = reproject::ReprojectPass::new(&gpu, &march.uniforms);
-        let mut shadow = shadow::ShadowPass::new(
+        let scene = scene::Scene::new(
             &gpu,
-            &march,
             scene_layout,
-            &map.meta.region,
-            shadow::SkyViews {
+            scene::SkyViews {
                 sky_view: atmosphere.sky_view().create_view(&Default::default()),
                 aerial: atmosphere.aerial().create_view(&Default::default()),
             },
         );
+        let mut shadow = shadow::ShadowPass::new(&gpu, &march, scene, &map.meta.region);
         shadow.set_ground(&gpu, map.ground());
         let timer = gpu.timestamps.then(|| stats::PassTimer::new(&gpu));
         let stats = stats::StatsReader::new(&gpu);
@@ -550,7 +214,7 @@ impl Renderer {
 
     /// The march's variants compiled so far: a frame needing one compiles it (tests check that
     /// a map's genera pick the right one).
-    pub fn march_variants_compiled(&self) -> Vec<march::Variant> {
+    pub fn march_variants_compiled(&self) -> Vec<pipeline::Variant> {
         self.march.compiled()
     }
 
@@ -621,41 +285,6 @@ impl Renderer {
         self.made
     }
 
-    /// The targets for a `width`×`height` march, made when the size changes.
-    fn targets(&mut self, width: u32, height: u32) -> &mut Targets {
-        let fits = self
-            .targets
-            .as_ref()
-            .is_some_and(|t| t.width == width && t.height == height);
-        if !fits {
-            self.made.targets += 1;
-            self.targets = None;
-        }
-        let (stages, targets) = self.split();
-        targets.get_or_insert_with(|| Targets::new(stages, (width, height)))
-    }
-
-    /// The stages that bind frame textures, beside the targets they bind.
-    fn split(&mut self) -> (Stages<'_>, &mut Option<Targets>) {
-        let Renderer {
-            gpu,
-            march,
-            present,
-            exposure,
-            reproject,
-            targets,
-            ..
-        } = self;
-        let stages = Stages {
-            gpu,
-            march,
-            present,
-            exposure,
-            reproject,
-        };
-        (stages, targets)
-    }
-
     /// Why the last reprojected frame did not use its history (`None`: it did, or no frame
     /// was reprojected): "first frame", "size", "map", "time", "teleport", "settings".
     pub fn last_reset(&self) -> Option<&'static str> {
@@ -669,7 +298,8 @@ impl Renderer {
     /// Record one frame into `enc`: the march at `width`×`height` (a subset of its pixels and
     /// the rest reprojected, when the settings ask for it and the view is a perspective), then
     /// the present pass into `target` (any size: the cloud image is scaled to it). Times the
-    /// passes when it can.
+    /// passes when it can. In steps: the light (the sky's tables, the light volume), the march
+    /// (and the reprojection), the present (the exposure, then the picture).
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
@@ -693,57 +323,44 @@ impl Renderer {
             .present
             .prepare(&self.gpu, target_format, settings.march.wide_upsample);
         let plan = self.plan_reprojection(view, (width, height), settings);
+        let step = self.march_step(plan.as_ref(), &mut uniforms, (width, height));
+        self.encode_light(enc, &uniforms, settings);
+        self.encode_march(enc, &uniforms, &step, plan.is_some(), (width, height));
+        self.encode_present(enc, settings, pipeline, target);
+        Ok(())
+    }
+
+    /// A frame's light: its uniforms and zeroed counters written, the sky's tables and the
+    /// full-column light volume made where they changed.
+    fn encode_light(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        uniforms: &frame::FrameUniforms,
+        settings: &Settings,
+    ) {
         let Renderer {
             gpu,
             march,
-            present,
             shadow,
             atmosphere,
-            exposure,
-            reproject,
             map_bind,
-            targets: Some(t),
-            timer,
             map_generation,
             ..
-        } = self
-        else {
-            unreachable!("targets were made by plan_reprojection");
-        };
-        // Which frame set this frame writes, and how its march is dispatched.
-        let (set, march_bind, dispatch, reproject_step) = match (&plan, t.history.as_ref()) {
-            (Some(p), Some(h)) if !p.full => {
-                let k = 1 - h.shown;
-                let [ox, oy] = reproject::subset_offset(h.n, h.frames);
-                uniforms.subset_n = h.n as f32;
-                uniforms.subset_offset = [ox as f32, oy as f32];
-                (k, &h.fresh_march_bind, h.cells, Some((k, p.params)))
-            }
-            (Some(_), Some(h)) => {
-                let k = 1 - h.shown;
-                let bind = if k == 0 {
-                    &t.frame.march_bind
-                } else {
-                    &h.other.march_bind
-                };
-                (k, bind, (width, height), None)
-            }
-            _ => (0, &t.frame.march_bind, (width, height), None),
-        };
+        } = self;
         gpu.queue
-            .write_buffer(&march.uniforms, 0, bytemuck::bytes_of(&uniforms));
+            .write_buffer(&march.uniforms, 0, bytemuck::bytes_of(uniforms));
         gpu.queue.write_buffer(
             &march.counters,
             0,
             bytemuck::bytes_of(&march::Counters::default()),
         );
-        atmosphere.update(enc, &uniforms);
+        atmosphere.update(enc, uniforms);
         shadow.update(
             gpu,
             enc,
             march,
             map_bind,
-            &uniforms,
+            uniforms,
             (
                 settings.march.column_light,
                 settings.march.terrain,
@@ -751,17 +368,42 @@ impl Renderer {
             ),
             *map_generation,
         );
+    }
+
+    /// A frame's march into the frame set `step` names (a subset march reprojected into it),
+    /// recorded as the frame shown.
+    fn encode_march(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        uniforms: &frame::FrameUniforms,
+        step: &MarchStep,
+        reprojected: bool,
+        size: (u32, u32),
+    ) {
+        let Renderer {
+            gpu,
+            march,
+            shadow,
+            reproject,
+            map_bind,
+            targets: Some(t),
+            timer,
+            ..
+        } = self
+        else {
+            unreachable!("targets were made by plan_reprojection");
+        };
         enc.clear_buffer(&t.cut_mask, 0, None);
         let timer = timer.as_ref();
-        let split = reproject_step.is_some();
+        let split = step.reproject.is_some();
         march.encode(
             gpu,
-            march::Variant::of(uniforms.flags),
+            pipeline::Variant::of(uniforms.flags),
             enc,
             map_bind,
-            march_bind,
+            t.march_bind(step.set, split),
             shadow.scene_bind(),
-            dispatch,
+            step.dispatch,
             timer.map(|q| {
                 if split {
                     q.compute_start()
@@ -770,22 +412,35 @@ impl Renderer {
                 }
             }),
         );
-        if let (Some((k, params)), Some(h)) = (reproject_step, t.history.as_ref()) {
+        if let (Some(params), Some(h)) = (step.reproject, t.history.as_ref()) {
             reproject.encode(
                 gpu,
                 enc,
                 &params,
-                &h.reproject_bind[k],
-                (width, height),
+                &h.reproject_bind[step.set],
+                size,
                 timer.map(|q| q.compute_end()),
             );
         }
-        t.reprojected = plan.is_some();
+        t.reprojected = reprojected;
         t.subset_marched = split;
-        if let Some(h) = t.history.as_mut().filter(|_| plan.is_some()) {
-            h.shown = set;
+        if let Some(h) = t.history.as_mut().filter(|_| reprojected) {
+            h.shown = step.set;
             h.frames = h.frames.wrapping_add(1);
         }
+    }
+
+    /// The frame shown: metered by the exposure stage, then presented into `target`.
+    fn encode_present(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        settings: &Settings,
+        pipeline: present::PipelineId,
+        target: &wgpu::TextureView,
+    ) {
+        let Some(t) = self.targets.as_ref() else {
+            unreachable!("targets were made by plan_reprojection");
+        };
         let shown = t.shown();
         let params = exposure::ExposureParams {
             ev_mul: 2f64.powf(settings.exposure_ev) as f32,
@@ -793,67 +448,21 @@ impl Renderer {
             auto_on: u32::from(settings.exposure_auto),
             _pad: 0,
         };
-        exposure.encode(gpu, enc, &params, &shown.exposure_bind, shadow.scene_bind());
-        present.encode(
+        let scene_bind = self.shadow.scene_bind();
+        self.exposure
+            .encode(&self.gpu, enc, &params, &shown.exposure_bind, scene_bind);
+        let timer = self.timer.as_ref();
+        self.present.encode(
             enc,
             pipeline,
             &shown.present_bind,
-            shadow.scene_bind(),
+            scene_bind,
             target,
             timer.map(|q| q.render_writes()),
         );
         if let Some(q) = timer {
             q.resolve(enc);
         }
-        Ok(())
-    }
-
-    /// Make the targets for this frame and decide how it is made: `None` marches every pixel;
-    /// else a reprojected frame, `full` when its history does not fit and the settings ask
-    /// for a full march then. Records the frame as the next one's history.
-    fn plan_reprojection(
-        &mut self,
-        view: &View,
-        size: (u32, u32),
-        settings: &Settings,
-    ) -> Option<ReprojectionPlan> {
-        let generation = self.map_generation;
-        self.targets(size.0, size.1);
-        let (stages, targets) = self.split();
-        let t = targets.as_mut()?;
-        let n = settings.march.subset;
-        let (Reprojection::On { full_reset }, View::Perspective(camera), true) =
-            (settings.reprojection, view, n > 1)
-        else {
-            // This frame writes the first frame set: the history's next frame starts afresh.
-            if let Some(h) = t.history.as_mut() {
-                h.last = None;
-            }
-            return None;
-        };
-        if t.history.as_ref().is_none_or(|h| h.n != n) {
-            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
-        }
-        let h = t.history.as_mut()?;
-        let now = reproject::FrameKey {
-            camera: *camera,
-            size,
-            subset: n,
-            map_generation: generation,
-            time: settings.time,
-            settings: settings.clone(),
-        };
-        let misfit = match &h.last {
-            None => Some("first frame"),
-            Some(last) => reproject::misfit(last, &now),
-        };
-        let params = reproject::params(h.last.as_ref(), camera, misfit.is_none());
-        h.last_reset = misfit;
-        h.last = Some(now);
-        Some(ReprojectionPlan {
-            full: misfit.is_some() && full_reset,
-            params,
-        })
     }
 
     /// The cloud's extinction (1/m) on a vertical curtain: one image column over each unit
@@ -889,7 +498,7 @@ impl Renderer {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let out = pass.encode(
             &self.gpu,
-            march::Variant::of(uniforms.flags),
+            pipeline::Variant::of(uniforms.flags),
             &mut enc,
             (self.march.device_bind(), &self.map_bind),
             columns,
@@ -1064,7 +673,7 @@ impl Renderer {
             let size = (t.width, t.height);
             t.color
                 .get_or_insert_with(|| {
-                    texture_2d(
+                    texture::texture_2d(
                         &dev,
                         "frame",
                         size,

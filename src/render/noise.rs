@@ -5,8 +5,9 @@ use wgpu::util::DeviceExt;
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::bind;
+use super::pipeline::bind;
 use super::shader;
+use super::texture::texture_3d;
 
 pub const SHAPE_SIZE: u32 = 128;
 pub const DETAIL_SIZE: u32 = 32;
@@ -66,22 +67,15 @@ impl NoiseTextures {
             cache: None,
         });
         let make = |size: u32, kind: u32, label: &str| {
-            let tex = dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size,
-                    height: size,
-                    depth_or_array_layers: size,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D3,
-                format: wgpu::TextureFormat::Rgba8Unorm,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING
+            let tex = texture_3d(
+                dev,
+                label,
+                (size, size, size),
+                wgpu::TextureFormat::Rgba8Unorm,
+                wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_DST
                     | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            );
             let params = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("noise params"),
                 contents: bytemuck::bytes_of(&NoiseParams {

@@ -4,9 +4,9 @@
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::bind;
+use super::pipeline::bind;
+use super::scene::{SCENE_BINDINGS, SCENE_GROUP};
 use super::shader;
-use super::shadow::{SCENE_BINDINGS, SCENE_GROUP};
 
 /// present.wgsl's own bindings: the frame uniforms (the device's lifetime), the march's cloud
 /// texture (the output size's) and the exposure stage's result (the device's).
@@ -161,7 +161,7 @@ impl PresentPass {
         cloud: &wgpu::TextureView,
         scene: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
-        super::march::bind_frame_textures(
+        super::pipeline::bind_frame_textures(
             &gpu.device,
             "present: target",
             &self.layouts[1],

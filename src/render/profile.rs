@@ -122,13 +122,13 @@ pub fn texture(gpu: &Gpu) -> wgpu::Texture {
         .iter()
         .flat_map(|t| t.map(half::f16::from_f32))
         .collect();
-    let tex = super::weather::map_texture(
+    let tex = super::texture::map_texture(
         gpu,
         "cloud-type profiles",
         (LUT_WIDTH, LUT_ROWS),
         wgpu::TextureFormat::Rgba16Float,
     );
-    super::weather::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
+    super::texture::write(gpu, &tex, bytemuck::cast_slice(&texels), 8);
     tex
 }
 

@@ -10,7 +10,8 @@ use glam::DVec3;
 use super::camera::Camera;
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::{bind, CLOUD_FORMAT};
+use super::march::CLOUD_FORMAT;
+use super::pipeline::bind;
 use super::{shader, Settings};
 
 crate::gpu_struct! {

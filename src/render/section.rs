@@ -6,7 +6,8 @@ use glam::DVec3;
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
-use super::march::{bind, MarchPass, StagePipelines, Variant, GROUP_TARGET};
+use super::march::{MarchPass, GROUP_TARGET};
+use super::pipeline::{bind, StagePipelines, Variant};
 use super::shader;
 
 crate::gpu_struct! {
@@ -99,8 +100,14 @@ impl SectionPass {
     pub fn new(gpu: &Gpu, march: &MarchPass) -> SectionPass {
         // Its frame is a top-down one, whose view the section does not draw.
         let unread = super::frame::flags::NO_SKY;
-        let (pipelines, layout) =
-            march.cloud_stage(gpu, "section", (OWN_BINDINGS, shader::SECTION), &[], unread);
+        let (pipelines, layout) = super::pipeline::cloud_stage(
+            gpu,
+            "section",
+            march.shared_layouts(),
+            (OWN_BINDINGS, GROUP_TARGET, shader::SECTION),
+            &[],
+            unread,
+        );
         SectionPass { pipelines, layout }
     }
 

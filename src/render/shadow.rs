@@ -6,50 +6,19 @@
 //! the map changes or the look does, never for the camera alone; after a key-light move it is
 //! made a slice a frame into a second volume while the first lights the frames ([`SLICES`]).
 //!
-//! It also owns the scene's bind group (group 3: the volume, its sampler and parameters, and the
-//! atmosphere's sky-view table) that the march, present and exposure stages share
-//! (shaders/scene.wgsl).
+//! Each volume is shown through its own scene group (render::scene, which owns that group's
+//! other resources): the march, present and exposure stages read the front one's.
 
 use super::contract::{self, Binding, Resource};
 use super::frame::{flags, FrameUniforms};
 use super::gpu::Gpu;
-use super::march::{bind, MarchPass, StagePipelines, Variant, GROUP_TARGET};
+use super::march::{MarchPass, GROUP_TARGET};
+use super::pipeline::{bind, StagePipelines, Variant};
+pub use super::scene::ShadowParams;
+use super::scene::{params_buffer, Scene};
 use super::shader;
+use super::texture::texture_3d;
 use stratus_ingest::region::Region;
-
-crate::gpu_struct! {
-    /// The volume's parameters (`ShadowParams` in shaders/common.wgsl).
-    pub struct ShadowParams as "ShadowParams" {
-        /// Toward the key light the volume was made for (ECEF unit vector).
-        pub key_dir: [f32; 3],
-        /// Altitude of the volume's bottom face (m).
-        pub bottom_m: f32,
-        /// Altitude of its top face (m): the top of the highest drawn cloud.
-        pub top_m: f32,
-        /// 0 when the preset's switch is off: every look-up gives no cloud.
-        pub enabled: u32,
-        /// Samples per path.
-        pub steps: u32,
-        /// Longest path toward the key light (m).
-        pub max_path_m: f32,
-        /// Region uv → ground texture uv: uv · (x, y) + (z, w) (`Ground::texture_transform`).
-        pub ground_uv: [f32; 4],
-        /// Highest terrain in the map (m).
-        pub ground_top_m: f32,
-        /// 1 when the map has a ground (render::ground), else sea level and a plain albedo.
-        pub ground_on: u32,
-        /// 1 when the preset draws the terrain.
-        pub terrain_on: u32,
-        /// 1 when the preset draws the clear air in front of ground and cloud.
-        pub aerial_on: u32,
-        /// The rows of texels this dispatch makes, [row0, row_end) (the shadow stage only: a
-        /// volume made over several frames, `ShadowPass::update`).
-        pub row0: u32,
-        pub row_end: u32,
-        pub pad0: u32,
-        pub pad1: u32,
-    }
-}
 
 pub const VOLUME_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 /// Texels along the region's longer side (the other side in proportion, in kilometres).
@@ -69,46 +38,6 @@ pub const REBUILD_DEG: f64 = 0.25;
 /// once: the old volume would light the wrong cloud.
 pub const SLICES: u32 = 8;
 
-/// The scene's group, shared by march.wgsl, present.wgsl and exposure.wgsl (scene.wgsl).
-pub const SCENE_GROUP: u32 = 3;
-pub const SCENE_BINDINGS: &[Binding] = &[
-    Binding {
-        group: SCENE_GROUP,
-        binding: 0,
-        resource: Resource::Texture3d,
-    },
-    Binding {
-        group: SCENE_GROUP,
-        binding: 1,
-        resource: Resource::Sampler,
-    },
-    contract::params(SCENE_GROUP, 2),
-    // The atmosphere's sky-view table (render::atmosphere).
-    Binding {
-        group: SCENE_GROUP,
-        binding: 3,
-        resource: Resource::Texture2d { filterable: true },
-    },
-    // The map's ground (render::ground).
-    Binding {
-        group: SCENE_GROUP,
-        binding: 4,
-        resource: Resource::Texture2d { filterable: true },
-    },
-    // The atmosphere's aerial-perspective table.
-    Binding {
-        group: SCENE_GROUP,
-        binding: 5,
-        resource: Resource::Texture3d,
-    },
-];
-
-/// The atmosphere's tables the scene's group shows (render::atmosphere).
-pub struct SkyViews {
-    pub sky_view: wgpu::TextureView,
-    pub aerial: wgpu::TextureView,
-}
-
 /// shadow.wgsl's own bindings (groups 0 and 1 are the march's).
 pub const OWN_BINDINGS: &[Binding] = &[
     Binding {
@@ -127,17 +56,6 @@ pub fn bindings() -> Vec<Binding> {
         .chain(OWN_BINDINGS)
         .copied()
         .collect()
-}
-
-/// The scene group's layout, visible to every stage that shares it.
-pub fn scene_layout(dev: &wgpu::Device) -> wgpu::BindGroupLayout {
-    contract::layout(
-        dev,
-        "scene",
-        SCENE_BINDINGS,
-        SCENE_GROUP,
-        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::VERTEX,
-    )
 }
 
 /// Volume size for a region: [`MAX_SIDE`] along its longer side in kilometres.
@@ -231,16 +149,10 @@ struct Build {
 pub struct ShadowPass {
     pipelines: StagePipelines,
     own_layout: wgpu::BindGroupLayout,
-    scene_layout: wgpu::BindGroupLayout,
-    sampler: wgpu::Sampler,
-    /// What the stages that look the volume up read (scene group).
-    params: wgpu::Buffer,
+    /// The scene group's other resources (render::scene).
+    scene: Scene,
     /// What the shadow stage making a volume reads (its key light and rows).
     build_params: wgpu::Buffer,
-    sky: SkyViews,
-    ground: wgpu::TextureView,
-    /// The ground's uv transform and highest terrain; `None` without a ground.
-    ground_fit: Option<([f32; 4], f32)>,
     size: (u32, u32, u32),
     /// The volume that lights the frames (`front`) and the one the next is made in (two).
     volumes: Vec<Volume>,
@@ -253,52 +165,22 @@ pub struct ShadowPass {
 }
 
 impl ShadowPass {
-    pub fn new(
-        gpu: &Gpu,
-        march: &MarchPass,
-        scene_layout: wgpu::BindGroupLayout,
-        region: &Region,
-        sky: SkyViews,
-    ) -> ShadowPass {
-        let dev = &gpu.device;
-        let (pipelines, own_layout) = march.cloud_stage(
+    pub fn new(gpu: &Gpu, march: &MarchPass, scene: Scene, region: &Region) -> ShadowPass {
+        let (pipelines, own_layout) = super::pipeline::cloud_stage(
             gpu,
             "shadow",
-            (OWN_BINDINGS, shader::SHADOW),
+            march.shared_layouts(),
+            (OWN_BINDINGS, GROUP_TARGET, shader::SHADOW),
             &[("MEAN_DENSITY", 1.0)],
             // The light volume takes no detail noise and draws no view.
             flags::DETAIL | flags::NO_SKY,
         );
-        let params_buffer = |label| {
-            dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: std::mem::size_of::<ShadowParams>() as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let params = params_buffer("shadow params");
-        let build_params = params_buffer("shadow build params");
-        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("shadow volume"),
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            ..Default::default()
-        });
-        let size = volume_size(region);
-        let (ground_tex, _) = super::ground::upload(gpu, None);
-        let ground = ground_tex.create_view(&Default::default());
         let mut pass = ShadowPass {
             pipelines,
             own_layout,
-            scene_layout,
-            sampler,
-            params,
-            build_params,
-            sky,
-            ground,
-            ground_fit: None,
-            size,
+            scene,
+            build_params: params_buffer(gpu, "shadow build params"),
+            size: volume_size(region),
             volumes: Vec::new(),
             front: 0,
             last: None,
@@ -311,21 +193,13 @@ impl ShadowPass {
 
     fn make_volume(&self, gpu: &Gpu) -> Volume {
         let dev = &gpu.device;
-        let (w, h, d) = self.size;
-        let texture = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow volume"),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: d,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: VOLUME_FORMAT,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let texture = texture_3d(
+            dev,
+            "shadow volume",
+            self.size,
+            VOLUME_FORMAT,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let view = texture.create_view(&Default::default());
         use wgpu::BindingResource as R;
         let own_bind = bind(
@@ -337,23 +211,10 @@ impl ShadowPass {
                 R::Buffer(self.build_params.as_entire_buffer_binding()),
             ],
         );
-        let scene_bind = bind(
-            dev,
-            "scene",
-            &self.scene_layout,
-            [
-                R::TextureView(&view),
-                R::Sampler(&self.sampler),
-                R::Buffer(self.params.as_entire_buffer_binding()),
-                R::TextureView(&self.sky.sky_view),
-                R::TextureView(&self.ground),
-                R::TextureView(&self.sky.aerial),
-            ],
-        );
         Volume {
             _texture: texture,
             own_bind,
-            scene_bind,
+            scene_bind: self.scene.bind(gpu, &view),
         }
     }
 
@@ -369,9 +230,7 @@ impl ShadowPass {
 
     /// A map's ground (or none: sea level and a plain albedo).
     pub fn set_ground(&mut self, gpu: &Gpu, ground: Option<&stratus_ingest::ground::Ground>) {
-        let (tex, uv) = super::ground::upload(gpu, ground);
-        self.ground = tex.create_view(&Default::default());
-        self.ground_fit = ground.map(|g| (uv, g.height_range().1.max(0.0) as f32));
+        self.scene.set_ground(gpu, ground);
         self.rebind(gpu);
     }
 
@@ -403,7 +262,7 @@ impl ShadowPass {
         march: &MarchPass,
         map_bind: &wgpu::BindGroup,
         u: &FrameUniforms,
-        (enabled, terrain, aerial): (bool, bool, bool),
+        switches: (bool, bool, bool),
         map_generation: u64,
     ) -> bool {
         let key_dir = if u.sun_is_key != 0 {
@@ -412,58 +271,20 @@ impl ShadowPass {
             u.moon_dir
         };
         let inputs = Inputs::of(u, key_dir, map_generation);
-        let params = ShadowParams {
-            key_dir,
-            bottom_m: 0.0,
-            top_m: u.shell_top_m.clamp(1000.0, 100_000.0),
-            enabled: u32::from(enabled && u.shell_top_m < 1.0e5),
-            steps: STEPS,
-            max_path_m: MAX_PATH_M,
-            ground_uv: self.ground_fit.map_or([1.0, 1.0, 0.0, 0.0], |g| g.0),
-            ground_top_m: self.ground_fit.map_or(0.0, |g| g.1),
-            ground_on: u32::from(self.ground_fit.is_some()),
-            terrain_on: u32::from(terrain && self.ground_fit.is_some()),
-            aerial_on: u32::from(aerial),
-            ..Default::default()
-        };
+        let params = self.look_up(u, key_dir, switches);
         // The ground's part can change without the volume (the preset's terrain switch).
-        gpu.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let rows = self.size.1;
-        let (target, build) = match self.last {
-            Some(last) if !inputs.needs_rebuild(&last) => match self.building {
-                // Settled: nothing to make.
-                None => return false,
-                Some(b) => (1 - self.front, b),
-            },
-            Some(last) if inputs.same_cloud(&last) => {
-                let b = self.building.unwrap_or(Build {
-                    inputs,
-                    key_dir,
-                    next_row: 0,
-                });
-                (1 - self.front, b)
-            }
-            _ => {
-                // A new cloud (or none made yet): whole, now, into the front volume.
-                self.building = None;
-                (
-                    self.front,
-                    Build {
-                        inputs,
-                        key_dir,
-                        next_row: 0,
-                    },
-                )
-            }
+        self.scene.write_params(gpu, &params);
+        let Some((target, build)) = self.next_build(inputs, key_dir) else {
+            // Settled: nothing to make.
+            return false;
         };
         if params.enabled == 0 {
             // Look-ups give no cloud; switched on again, it is made whole.
             self.invalidate();
             return false;
         }
-        let whole = target == self.front;
-        let row_end = if whole {
+        let rows = self.size.1;
+        let row_end = if target == self.front {
             rows
         } else {
             (build.next_row + rows.div_ceil(SLICES)).min(rows)
@@ -476,18 +297,15 @@ impl ShadowPass {
         };
         gpu.queue
             .write_buffer(&self.build_params, 0, bytemuck::bytes_of(&build_params));
-        let (w, _, _) = self.size;
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("shadow"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipelines.get(gpu, Variant::of(u.flags)));
-            pass.set_bind_group(0, march.device_bind(), &[]);
-            pass.set_bind_group(1, map_bind, &[]);
-            pass.set_bind_group(GROUP_TARGET, &self.volumes[target].own_bind, &[]);
-            pass.dispatch_workgroups(w.div_ceil(8), (row_end - build.next_row).div_ceil(8), 1);
-        }
+        self.dispatch(
+            gpu,
+            enc,
+            march,
+            map_bind,
+            u,
+            target,
+            build.next_row..row_end,
+        );
         if row_end < rows {
             self.building = Some(Build {
                 next_row: row_end,
@@ -500,6 +318,79 @@ impl ShadowPass {
         self.building = None;
         self.builds += 1;
         true
+    }
+
+    /// The look-up parameters for a frame's uniforms, its key light and the preset's switches
+    /// (the volume, the terrain, the aerial perspective).
+    fn look_up(
+        &self,
+        u: &FrameUniforms,
+        key_dir: [f32; 3],
+        (enabled, terrain, aerial): (bool, bool, bool),
+    ) -> ShadowParams {
+        let fit = self.scene.ground_fit();
+        ShadowParams {
+            key_dir,
+            bottom_m: 0.0,
+            top_m: u.shell_top_m.clamp(1000.0, 100_000.0),
+            enabled: u32::from(enabled && u.shell_top_m < 1.0e5),
+            steps: STEPS,
+            max_path_m: MAX_PATH_M,
+            ground_uv: fit.map_or([1.0, 1.0, 0.0, 0.0], |g| g.0),
+            ground_top_m: fit.map_or(0.0, |g| g.1),
+            ground_on: u32::from(fit.is_some()),
+            terrain_on: u32::from(terrain && fit.is_some()),
+            aerial_on: u32::from(aerial),
+            ..Default::default()
+        }
+    }
+
+    /// Which volume to make rows of next and how far it got: `None` when the front one still
+    /// fits and none is being made; the other volume, a slice at a time, when only the key light
+    /// moved; else the front one, whole.
+    fn next_build(&mut self, inputs: Inputs, key_dir: [f32; 3]) -> Option<(usize, Build)> {
+        let fresh = Build {
+            inputs,
+            key_dir,
+            next_row: 0,
+        };
+        match self.last {
+            Some(last) if !inputs.needs_rebuild(&last) => {
+                self.building.map(|b| (1 - self.front, b))
+            }
+            Some(last) if inputs.same_cloud(&last) => {
+                Some((1 - self.front, self.building.unwrap_or(fresh)))
+            }
+            _ => {
+                // A new cloud (or none made yet): whole, now, into the front volume.
+                self.building = None;
+                Some((self.front, fresh))
+            }
+        }
+    }
+
+    /// Record the shadow stage making `rows` of volume `target`.
+    #[allow(clippy::too_many_arguments)]
+    fn dispatch(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        march: &MarchPass,
+        map_bind: &wgpu::BindGroup,
+        u: &FrameUniforms,
+        target: usize,
+        rows: std::ops::Range<u32>,
+    ) {
+        let (w, _, _) = self.size;
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("shadow"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipelines.get(gpu, Variant::of(u.flags)));
+        pass.set_bind_group(0, march.device_bind(), &[]);
+        pass.set_bind_group(1, map_bind, &[]);
+        pass.set_bind_group(GROUP_TARGET, &self.volumes[target].own_bind, &[]);
+        pass.dispatch_workgroups(w.div_ceil(8), (rows.end - rows.start).div_ceil(8), 1);
     }
 }
 

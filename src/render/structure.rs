@@ -236,7 +236,7 @@ impl StructureTextures {
     pub fn new(gpu: &Gpu, p: &Prepared) -> StructureTextures {
         let size = (p.width as usize, p.height as usize);
         let textures = LABELS.map(|label| {
-            super::weather::map_texture(gpu, label, size, wgpu::TextureFormat::Rgba16Float)
+            super::texture::map_texture(gpu, label, size, wgpu::TextureFormat::Rgba16Float)
         });
         StructureTextures {
             textures,
@@ -251,7 +251,7 @@ impl StructureTextures {
 
     pub fn store(&mut self, gpu: &Gpu, p: &Prepared) {
         for (tex, texels) in self.textures.iter().zip(&p.texels) {
-            super::weather::write(gpu, tex, bytemuck::cast_slice(texels), 8);
+            super::texture::write(gpu, tex, bytemuck::cast_slice(texels), 8);
         }
         self.info = p.info;
     }

@@ -161,42 +161,6 @@ impl Prepared {
     }
 }
 
-pub(super) fn map_texture(
-    gpu: &Gpu,
-    label: &str,
-    (w, h): (usize, usize),
-    format: wgpu::TextureFormat,
-) -> wgpu::Texture {
-    gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: w as u32,
-            height: h as u32,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    })
-}
-
-pub(super) fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
-    let (w, h) = (tex.width(), tex.height());
-    gpu.queue.write_texture(
-        tex.as_image_copy(),
-        bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(w * bytes_per_texel as u32),
-            rows_per_image: Some(h),
-        },
-        tex.size(),
-    );
-}
-
 impl WeatherMap {
     /// Make the map's textures and upload it.
     pub fn upload(gpu: &Gpu, map: &CloudMap) -> WeatherMap {
@@ -204,13 +168,13 @@ impl WeatherMap {
     }
 
     fn with(gpu: &Gpu, p: Prepared) -> WeatherMap {
-        let texture = map_texture(
+        let texture = super::texture::map_texture(
             gpu,
             "weather map",
             (p.w, p.h),
             wgpu::TextureFormat::Rgba16Float,
         );
-        let coarse = map_texture(
+        let coarse = super::texture::map_texture(
             gpu,
             "coarse map",
             (p.cw, p.ch),
@@ -272,7 +236,7 @@ impl WeatherMap {
             .collect();
         let cells = dilate(&cells, pa.cw, pa.ch, reach_cells);
         let mut kept = self.replace(gpu, a);
-        write(gpu, &self.coarse, bytemuck::cast_slice(&cells), 4);
+        super::texture::write(gpu, &self.coarse, bytemuck::cast_slice(&cells), 4);
         self.coarse_cells = cells;
         kept &= self
             .blend
@@ -294,8 +258,8 @@ impl WeatherMap {
     }
 
     fn store(&mut self, gpu: &Gpu, p: Prepared) {
-        write(gpu, &self.texture, bytemuck::cast_slice(&p.halfs), 8);
-        write(gpu, &self.coarse, bytemuck::cast_slice(&p.cells), 4);
+        super::texture::write(gpu, &self.texture, bytemuck::cast_slice(&p.halfs), 8);
+        super::texture::write(gpu, &self.coarse, bytemuck::cast_slice(&p.cells), 4);
         self.skip_m = p.skip_m;
         self.bands = p.bands;
         self.coarse_cells = p.cells;

@@ -1,0 +1,205 @@
+//! Pipelines and bind groups, the plumbing every stage shares: compute pipelines built from a
+//! stage's module, a cloud stage's feature variants ([`Variant`], compiled per frame's features
+//! as pipeline-overridable constants, [`StagePipelines`]), the pipeline layout of a stage that
+//! evaluates the cloud as the march does ([`cloud_stage`]), and bind groups numbered in order
+//! ([`bind`], [`bind_frame_textures`]). The layouts themselves come from each stage's binding
+//! table (render::contract).
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use super::contract::{self, Binding};
+use super::frame::flags;
+use super::gpu::Gpu;
+use super::shader;
+
+/// Which of the cloud stages' optional code a frame compiles in: its flags ([`FEATURE_BITS`] of
+/// them) as the WGSL constant `FEATURES`. A CPU driver runs both sides of every branch, so a frame
+/// would otherwise pay for every feature it does not use (the two-step blend, the bands' carve,
+/// the towers, the cells, the streaks, the detail noise, the top-down view's lighting).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant(u32);
+
+/// The flags that select a variant: those that add or remove code on the per-sample path.
+pub const FEATURE_BITS: u32 = flags::STRUCTURE
+    | flags::TOWERS
+    | flags::STREAKS
+    | flags::CELLS
+    | flags::BLEND
+    | flags::DETAIL
+    | flags::NO_SKY;
+
+impl Variant {
+    /// The variant a frame's flags (`frame::flags`) need.
+    pub fn of(flags: u32) -> Variant {
+        Variant(flags & FEATURE_BITS)
+    }
+
+    /// Whether it compiles in the cumulonimbus towers.
+    pub fn towers(self) -> bool {
+        self.0 & flags::TOWERS != 0
+    }
+
+    /// Whether it compiles in the cumulus cells.
+    pub fn cells(self) -> bool {
+        self.0 & flags::CELLS != 0
+    }
+}
+
+/// One cloud-evaluating stage's pipelines (march, shadow, section), one per [`Variant`], each
+/// compiled the first time a frame needs it.
+pub struct StagePipelines {
+    label: String,
+    layout: wgpu::PipelineLayout,
+    module: wgpu::ShaderModule,
+    /// The stage's own constants, besides the variant's.
+    constants: Vec<(&'static str, f64)>,
+    /// The feature flags the stage's code does not read: left out of its variants.
+    unread: u32,
+    compiled: Mutex<HashMap<Variant, wgpu::ComputePipeline>>,
+}
+
+impl StagePipelines {
+    pub fn new(
+        label: &str,
+        layout: wgpu::PipelineLayout,
+        module: wgpu::ShaderModule,
+        constants: &[(&'static str, f64)],
+        unread: u32,
+    ) -> StagePipelines {
+        StagePipelines {
+            label: label.to_string(),
+            layout,
+            module,
+            constants: constants.to_vec(),
+            unread,
+            compiled: Mutex::default(),
+        }
+    }
+
+    /// The pipeline for a frame's variant (compiled on first use).
+    pub fn get(&self, gpu: &Gpu, v: Variant) -> wgpu::ComputePipeline {
+        let v = Variant(v.0 & !self.unread);
+        self.lock()
+            .entry(v)
+            .or_insert_with(|| {
+                let label = format!("{} (features {:#x})", self.label, v.0);
+                let mut constants = self.constants.clone();
+                constants.extend([("FIXED_FEATURES", 1.0), ("FEATURES", f64::from(v.0))]);
+                compute_pipeline(gpu, &label, &self.layout, &self.module, &constants)
+            })
+            .clone()
+    }
+
+    /// The variants compiled so far.
+    pub fn compiled(&self) -> Vec<Variant> {
+        self.lock().keys().copied().collect()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Variant, wgpu::ComputePipeline>> {
+        // A poisoned lock only means a thread panicked while compiling: the map is intact.
+        self.compiled.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// A compute stage that evaluates the cloud as the march does: the march's device and map
+/// groups (`shared`), then its own bindings as group `own_group`; entry point `main`, with
+/// these pipeline-overridable constants besides the variant's; `unread`: the feature flags its
+/// code does not read (frames differing only in them share a pipeline). Returns its pipelines
+/// and its own group's layout.
+pub fn cloud_stage(
+    gpu: &Gpu,
+    label: &str,
+    shared: [&wgpu::BindGroupLayout; 2],
+    (own, own_group, source): (&[Binding], u32, &str),
+    constants: &[(&'static str, f64)],
+    unread: u32,
+) -> (StagePipelines, wgpu::BindGroupLayout) {
+    let dev = &gpu.device;
+    let stage = wgpu::ShaderStages::COMPUTE;
+    let own_layout = contract::layout(dev, label, own, own_group, stage);
+    let [device_layout, map_layout] = shared;
+    let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(device_layout), Some(map_layout), Some(&own_layout)],
+        immediate_size: 0,
+    });
+    let module = shader::module(dev, label, source);
+    let pipelines = StagePipelines::new(label, pipeline_layout, module, constants, unread);
+    (pipelines, own_layout)
+}
+
+/// A compute pipeline of `module`'s entry point `main` with these overridable constants.
+pub fn compute_pipeline(
+    gpu: &Gpu,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
+    entry_pipeline(&gpu.device, label, layout, module, "main", constants)
+}
+
+/// A compute pipeline of one entry point of `module`, with these overridable constants.
+pub fn entry_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
+    dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        module,
+        entry_point: Some(entry),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
+        cache: None,
+    })
+}
+
+/// A frame's cloud and scene textures bound as group 1 bindings 0 and 1, what the exposure
+/// and present stages read (each with its own layout).
+pub fn bind_frame_textures(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    cloud: &wgpu::TextureView,
+    scene: &wgpu::TextureView,
+) -> wgpu::BindGroup {
+    bind(
+        dev,
+        label,
+        layout,
+        [
+            wgpu::BindingResource::TextureView(cloud),
+            wgpu::BindingResource::TextureView(scene),
+        ],
+    )
+}
+
+/// A bind group whose entries are numbered in order from 0.
+pub fn bind<const N: usize>(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: [wgpu::BindingResource<'_>; N],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .into_iter()
+        .enumerate()
+        .map(|(i, resource)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource,
+        })
+        .collect();
+    dev.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}

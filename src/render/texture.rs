@@ -1,0 +1,83 @@
+//! Texture helpers every stage shares: a 2D or 3D texture of one level, a sampled 2D texture
+//! the CPU fills ([`map_texture`], [`write`]).
+
+use super::gpu::Gpu;
+
+/// A single-level 2D texture.
+pub fn texture_2d(
+    dev: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// A single-level 3D texture.
+pub fn texture_3d(
+    dev: &wgpu::Device,
+    label: &str,
+    (width, height, depth): (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: depth,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// A sampled 2D texture the CPU fills ([`write`]): the map's, the tables'.
+pub fn map_texture(
+    gpu: &Gpu,
+    label: &str,
+    (w, h): (usize, usize),
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    texture_2d(
+        &gpu.device,
+        label,
+        (w as u32, h as u32),
+        format,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+    )
+}
+
+/// Fill the whole of a 2D texture with tightly packed texels.
+pub fn write(gpu: &Gpu, tex: &wgpu::Texture, bytes: &[u8], bytes_per_texel: usize) {
+    let (w, h) = (tex.width(), tex.height());
+    gpu.queue.write_texture(
+        tex.as_image_copy(),
+        bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(w * bytes_per_texel as u32),
+            rows_per_image: Some(h),
+        },
+        tex.size(),
+    );
+}
