@@ -31,7 +31,7 @@ enum Opened {
     /// Not readable as a sidecar at all (missing, not a regular file, not JSON…).
     Unread(IngestError),
     /// A CloudMap's sidecar, checked (or why not).
-    Map(Result<CloudMapMeta>),
+    Map(Box<Result<CloudMapMeta>>),
     /// A series sidecar, its steps' sidecars checked (or why not).
     Series(Result<Series>),
 }
@@ -42,7 +42,7 @@ impl Scene {
         let opened = match read_sidecar_text(path) {
             Err(e) => Opened::Unread(e),
             Ok(text) if text_is_series(&text) => Opened::Series(Series::from_text(path, &text)),
-            Ok(text) => Opened::Map(meta_from_text(path, &text)),
+            Ok(text) => Opened::Map(Box::new(meta_from_text(path, &text))),
         };
         Scene {
             path: path.to_path_buf(),
@@ -60,7 +60,11 @@ impl Scene {
     pub fn files(&self) -> Vec<PathBuf> {
         let mut files = vec![self.path.clone()];
         match &self.opened {
-            Opened::Map(Ok(meta)) => files.push(meta.image_path(&self.path)),
+            Opened::Map(m) => {
+                if let Ok(meta) = m.as_ref() {
+                    files.push(meta.image_path(&self.path));
+                }
+            }
             Opened::Series(Ok(s)) => files.extend(s.files()),
             _ => {}
         }
@@ -72,7 +76,7 @@ impl Scene {
     pub fn map_at(self, time: Option<DateTime<Utc>>) -> Result<CloudMap> {
         match self.opened {
             Opened::Unread(e) => Err(e),
-            Opened::Map(meta) => CloudMap::load_with(&self.path, meta?),
+            Opened::Map(meta) => CloudMap::load_with(&self.path, (*meta)?),
             Opened::Series(s) => {
                 let s = s?;
                 match time {
