@@ -1,4 +1,11 @@
 //! The `stratus` command line: fetch, inspect, ingest, render, score, fly.
+//!
+//! # Layers
+//!
+//! Bottom first: a module uses only modules on its own line or on the lines above it.
+//!
+//! 1. `cleanup` — the signal hook: INT, TERM and HUP remove what is in flight, then exit
+//! 2. `cmd` — one module per subcommand over the `stratus` library and `stratus-ingest`
 
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;

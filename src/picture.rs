@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use image::ImageEncoder;
-use stratus_ingest::cloudmap::write_atomic;
+use stratus_ingest::output::write_atomic;
 use stratus_ingest::IngestError;
 
 /// Write an RGBA8 image as PNG.

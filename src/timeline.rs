@@ -24,7 +24,7 @@ use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::Result;
 use stratus_ingest::series::meta::show_hour;
 use stratus_ingest::series::winds::map_mean_wind;
-use stratus_ingest::series::{is_series, Series};
+use stratus_ingest::series::Series;
 
 use crate::render::{RenderError, Renderer};
 
@@ -46,7 +46,7 @@ pub struct Timeline {
     /// Each step's valid time and region-mean layer winds: from the series sidecar, else
     /// filled in as the steps are decoded ([`Timeline::prepare`] fills those it needs).
     means: Vec<(DateTime<Utc>, Option<PerLayer>)>,
-    /// The step map [`open_scene`] decoded, kept for [`Timeline::prepare`].
+    /// The step map [`Timeline::start`] decoded, kept for [`Timeline::prepare`].
     opened: Option<(usize, CloudMap)>,
     /// The interval held on the GPU (steps k, k + 1) and the later step's map, which becomes
     /// the earlier one of the next interval.
@@ -74,49 +74,20 @@ fn load_step(series: &Series, k: usize, decoded: &AtomicU32) -> Result<CloudMap>
     Ok(m)
 }
 
-/// What a command draws from `--map` at `time`: the map to start the renderer from (and to read
-/// the camera's ground, the layers and, without a time, the valid time from) and, for a series,
-/// the timeline that blends its steps on the GPU ([`Timeline::prepare`]). A plain map is loaded
-/// as it is; a series gives the step nearer the moment (the first without one), whose structure
-/// and ground the blend takes there. No CPU blend: that is [`Series::at`], the reference.
-pub fn open_scene(
-    path: &Path,
-    time: Option<DateTime<Utc>>,
-) -> Result<(CloudMap, Option<Timeline>)> {
-    if !is_series(path) {
-        return Ok((CloudMap::load(path)?, None));
-    }
-    let mut tl = Timeline::open(path)?;
-    let k = match time {
-        Some(t) => {
-            let (first, last) = tl.span();
-            if t < first || t > last {
-                tracing::warn!(
-                    "{} is outside the series ({} to {}): the nearest step is held",
-                    stratus_ingest::meta::format_time(&t),
-                    stratus_ingest::meta::format_time(&first),
-                    stratus_ingest::meta::format_time(&last)
-                );
-            }
-            tl.nearer_step(t)
-        }
-        None => 0,
-    };
-    let map = tl.step(k)?;
-    tl.opened = Some((k, map.clone()));
-    Ok((map, Some(tl)))
-}
-
 impl Timeline {
     /// Open the series sidecar `path` (its steps' sidecars are read, no step map is decoded).
     pub fn open(path: &Path) -> Result<Timeline> {
-        let series = Series::load(path)?;
+        Ok(Self::of(Series::load(path)?))
+    }
+
+    /// The timeline of a series already loaded (no step map is decoded).
+    pub fn of(series: Series) -> Timeline {
         let means = series
             .steps()
             .iter()
             .map(|s| (s.valid_time, s.mean_wind))
             .collect();
-        Ok(Timeline {
+        Timeline {
             series,
             means,
             opened: None,
@@ -125,7 +96,32 @@ impl Timeline {
             uploads: 0,
             load_ahead: true,
             decoded: Arc::new(AtomicU32::new(0)),
-        })
+        }
+    }
+
+    /// The timeline of `series` at `time`, and the map to start the renderer from: the step
+    /// nearer the moment (the first without one), whose structure and ground the blend takes
+    /// there, decoded once and kept for [`Timeline::prepare`].
+    pub fn start(series: Series, time: Option<DateTime<Utc>>) -> Result<(CloudMap, Timeline)> {
+        let mut tl = Self::of(series);
+        let k = match time {
+            Some(t) => {
+                let (first, last) = tl.span();
+                if t < first || t > last {
+                    tracing::warn!(
+                        "{} is outside the series ({} to {}): the nearest step is held",
+                        stratus_ingest::meta::format_time(&t),
+                        stratus_ingest::meta::format_time(&first),
+                        stratus_ingest::meta::format_time(&last)
+                    );
+                }
+                tl.nearer_step(t)
+            }
+            None => 0,
+        };
+        let map = tl.step(k)?;
+        tl.opened = Some((k, map.clone()));
+        Ok((map, tl))
     }
 
     /// Step maps decoded since the series was opened.
@@ -133,7 +129,7 @@ impl Timeline {
         self.decoded.load(Ordering::Relaxed)
     }
 
-    /// Step `k`'s map: the one [`open_scene`] kept, else decoded (its mean wind noted).
+    /// Step `k`'s map: the one [`Timeline::start`] kept, else decoded (its mean wind noted).
     fn step(&mut self, k: usize) -> Result<CloudMap> {
         if let Some((j, m)) = self.opened.take() {
             if j == k {

@@ -16,8 +16,9 @@ use std::path::{Path, PathBuf};
 use chrono::{DateTime, Duration, Utc};
 use common::{sample, stratus};
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
+use stratus::scene::Scene;
 use stratus::score::{self, compare, mask};
-use stratus::timeline::{open_scene, Timeline};
+use stratus::timeline::Timeline;
 use stratus_ingest::series::{blend, Series};
 
 /// Ingest the two real steps into `dir/na.json`.
@@ -131,7 +132,7 @@ fn render_time_half_way_blends_on_the_gpu() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     // What the command does, in the library: the step nearer +3 h, the pair on the GPU.
-    let (start, tl) = open_scene(&path, Some(t)).unwrap();
+    let (start, tl) = Scene::open(&path).for_renderer(Some(t)).unwrap();
     let mut tl = tl.expect("a series");
     let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &start);
     let mut s = settings(t);

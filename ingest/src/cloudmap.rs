@@ -132,9 +132,20 @@ impl CloudMap {
     /// is one error naming the file. A set caught between a writer's renames is read again a few
     /// times before it is refused.
     pub fn load(sidecar: &Path) -> Result<CloudMap> {
+        Self::load_with(sidecar, load_meta(sidecar)?)
+    }
+
+    /// [`CloudMap::load`] from a sidecar already read and checked (`meta`, from [`load_meta`]
+    /// or [`meta_from_text`]): the images are read against it; a set caught between a
+    /// writer's renames has its sidecar read again.
+    pub fn load_with(sidecar: &Path, meta: CloudMapMeta) -> Result<CloudMap> {
         let mut attempt = 0;
+        let mut meta = Some(meta);
         loop {
-            let meta = load_meta(sidecar)?;
+            let meta = match meta.take() {
+                Some(m) => m,
+                None => load_meta(sidecar)?,
+            };
             let read = read_png16(&meta.image_path(sidecar), &meta).and_then(|texels| {
                 let structure = match meta.extra_images.is_empty() {
                     true => None,
@@ -473,13 +484,19 @@ const PAIR_RETRY_WAIT: std::time::Duration = std::time::Duration::from_millis(40
 /// known format, and every value within [`CloudMapMeta::validate`]'s ranges. Errors name the
 /// sidecar and the field.
 pub fn load_meta(sidecar: &Path) -> Result<CloudMapMeta> {
+    let text = crate::input::read_sidecar_text(sidecar)?;
+    meta_from_text(sidecar, &text)
+}
+
+/// [`load_meta`] of a sidecar's text already read ([`crate::input::read_sidecar_text`]);
+/// `sidecar` names it in errors.
+pub fn meta_from_text(sidecar: &Path, text: &str) -> Result<CloudMapMeta> {
     let bad = |msg: String| IngestError::BadCloudMap {
         path: sidecar.to_path_buf(),
         msg,
     };
-    let text = crate::input::read_sidecar_text(sidecar)?;
     let meta: CloudMapMeta =
-        serde_json::from_str(&text).map_err(|e| bad(format!("sidecar is not valid: {e}")))?;
+        serde_json::from_str(text).map_err(|e| bad(format!("sidecar is not valid: {e}")))?;
     meta.validate().map_err(bad)?;
     Ok(meta)
 }

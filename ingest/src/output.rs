@@ -1,4 +1,5 @@
-//! Writing output without destroying what is not output and without leaving half a file.
+//! Writing output without destroying what is not output and without leaving half a file: the
+//! one file-commit mechanism of the whole program (ingest, render, flight, fetch and the rest).
 //!
 //! - **One file** ([`write_atomic`]): written to a temporary file created exclusively (never
 //!   through an existing name, so a planted symbolic link is never followed) under an
@@ -11,12 +12,17 @@
 //!   the command's inputs is refused too ([`ensure_not_input`]).
 //! - **A CloudMap's PNG and sidecar commit together** ([`write_pair`]), with its extra images
 //!   when it has them ([`write_set`]): see their docs.
-//! - **Temporaries are accounted for**: each one is registered while it exists, so a signal
-//!   handler can remove them ([`cleanup_temps`]); ones a killed process left behind are swept
-//!   from the folder by the next write there once older than [`STALE_TEMP_AGE`].
+//! - **Many files staged, then committed as a set** ([`StagingDir`], [`commit_staged`]): a
+//!   series' step maps, a flight's frames. Renames happen under a lock across processes
+//!   ([`write_pair`]'s) and the in-process commit lock; a failed rename puts back what moved.
+//! - **Temporaries are accounted for**: each temporary file and staging folder is registered
+//!   while it exists, and each folder a run creates for its output ([`create_folder`]), so
+//!   the binary's signal handler can remove them ([`cleanup_temps`]); ones a killed process
+//!   left behind are swept from the folder by the next write or staging there once older than
+//!   [`STALE_TEMP_AGE`].
 
 use std::collections::BTreeSet;
-use std::ffi::OsString;
+use std::ffi::{OsStr, OsString};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -39,8 +45,14 @@ pub const KEPT_SUFFIX: &str = ".stratus-kept";
 /// it only for the seconds a map takes to write.)
 pub const STALE_TEMP_AGE: Duration = Duration::from_secs(15 * 60);
 
-/// Temporaries that exist now, for [`cleanup_temps`].
+/// A flight's staging folder inside its output folder is named `.stratus-frames.RANDOM`.
+pub const FRAMES_STAGING_PREFIX: &str = ".stratus-frames.";
+
+/// Temporaries (files and staging folders) that exist now, for [`cleanup_temps`].
 static LIVE: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
+/// Folders this run created for its output, outermost first: [`cleanup_temps`] removes them
+/// when empty.
+static CREATED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Held while renames put output in place, so [`cleanup_temps`] never cuts a pair in half.
 static COMMIT: Mutex<()> = Mutex::new(());
 /// Set by [`cleanup_temps`]: no temporary is created and nothing is committed after it.
@@ -51,10 +63,11 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-/// Remove every temporary file this process has open, and refuse to create or commit any
-/// more: for the binary's INT/TERM/HUP handler, which exits afterwards. A pair in the middle
-/// of its renames is let finish first, so an interrupted write leaves the old pair or the new
-/// one. Returns how many files were removed.
+/// Remove every temporary file and staging folder this process has open, then the folders it
+/// created for its output that are empty, innermost first, and refuse to create or commit any
+/// more: for the binary's INT/TERM/HUP handler, which exits afterwards. A pair (or a staged
+/// set) in the middle of its renames is let finish first, so an interrupted write leaves the
+/// old files or the new ones. Returns how many temporaries were removed.
 ///
 /// Call it from an ordinary thread (such as a signal-handling thread), not from inside an
 /// async signal handler: it takes locks.
@@ -63,9 +76,37 @@ pub fn cleanup_temps() -> usize {
     let _commit = lock(&COMMIT);
     let live = std::mem::take(&mut *lock(&LIVE));
     // Staging folders ([`StagingDir`]) are registered too, hence the folder removal.
-    live.iter()
+    let removed = live
+        .iter()
         .filter(|p| fs::remove_file(p).is_ok() || fs::remove_dir_all(p).is_ok())
-        .count()
+        .count();
+    let created = std::mem::take(&mut *lock(&CREATED));
+    remove_if_empty(&created);
+    removed
+}
+
+/// Create the folder `out` and any missing parents; returns the folders created, outermost
+/// first. Each is removed by [`cleanup_temps`] if still empty, for the rest of the run; on an
+/// error the caller removes them with [`remove_if_empty`].
+pub fn create_folder(out: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut missing: Vec<PathBuf> = out
+        .ancestors()
+        .filter(|p| !p.as_os_str().is_empty())
+        .take_while(|p| fs::symlink_metadata(p).is_err())
+        .map(Path::to_path_buf)
+        .collect();
+    missing.reverse();
+    fs::create_dir_all(out)?;
+    lock(&CREATED).extend(missing.iter().cloned());
+    Ok(missing)
+}
+
+/// Remove those of `dirs` (outermost first, as [`create_folder`] returns them) that are
+/// empty, innermost first. Never removes a folder that holds anything.
+pub fn remove_if_empty(dirs: &[PathBuf]) {
+    for d in dirs.iter().rev() {
+        let _ = fs::remove_dir(d);
+    }
 }
 
 /// Paths of the temporary files that exist now (for tests and diagnostics).
@@ -494,16 +535,17 @@ fn keep_previous(png: &Path) -> Result<Option<PathBuf>> {
     Ok(Some(kept))
 }
 
-/// A private folder beside the outputs where several files are written completely before any
-/// is put in place ([`commit_staged`]): a forecast series' step maps and its sidecar. Named
-/// like a temporary (`.NAME.RANDOM.stratus-tmp`), registered while it exists, and removed with
-/// everything in it when dropped, so an error leaves nothing behind.
+/// A private folder where several files are written completely before any is put in place
+/// ([`commit_staged`]): a forecast series' step maps and its sidecar, a flight's frames.
+/// Registered while it exists, and removed with everything in it when dropped, so an error
+/// leaves nothing behind; one a killed run left is swept once older than [`STALE_TEMP_AGE`].
 pub struct StagingDir {
     dir: Option<tempfile::TempDir>,
 }
 
 impl StagingDir {
-    /// A fresh folder beside `target` (a file the staged set will include).
+    /// A fresh folder beside `target` (a file the staged set will include), named like a
+    /// temporary (`.NAME.RANDOM.stratus-tmp`).
     pub fn create(target: &Path) -> Result<StagingDir> {
         let name = target
             .file_name()
@@ -512,24 +554,41 @@ impl StagingDir {
         prefix.push(name);
         prefix.push(".");
         let dir = parent_dir(target);
+        Self::make(target, dir, &prefix, TEMP_SUFFIX, |e| {
+            format!("cannot create a staging folder in {}: {e}", shown(dir))
+        })
+    }
+
+    /// A fresh folder inside the output folder `folder`, named `PREFIX` and random
+    /// characters ([`FRAMES_STAGING_PREFIX`] for a flight's frames).
+    pub fn create_in(folder: &Path, prefix: &str) -> Result<StagingDir> {
+        Self::make(folder, folder, OsStr::new(prefix), "", |e| {
+            format!("cannot create a staging folder: {e}")
+        })
+    }
+
+    /// Sweep `dir`, then create and register the folder (refused once shutting down);
+    /// `what` is the path errors name.
+    fn make(
+        what: &Path,
+        dir: &Path,
+        prefix: &OsStr,
+        suffix: &str,
+        fault: impl FnOnce(std::io::Error) -> String,
+    ) -> Result<StagingDir> {
         sweep_stale(dir);
         let mut live = lock(&LIVE);
         if SHUTTING_DOWN.load(Ordering::SeqCst) {
             return Err(IngestError::Interrupted {
-                path: target.to_path_buf(),
+                path: what.to_path_buf(),
             });
         }
         let tmp = tempfile::Builder::new()
-            .prefix(&prefix)
-            .suffix(TEMP_SUFFIX)
+            .prefix(prefix)
+            .suffix(suffix)
             .rand_bytes(10)
             .tempdir_in(dir)
-            .map_err(|e| {
-                IngestError::write(
-                    target,
-                    format!("cannot create a staging folder in {}: {e}", shown(dir)),
-                )
-            })?;
+            .map_err(|e| IngestError::write(what, fault(e)))?;
         live.insert(tmp.path().to_path_buf());
         Ok(StagingDir { dir: Some(tmp) })
     }
@@ -554,6 +613,16 @@ impl Drop for StagingDir {
 /// any rename fails, every file already moved is put back as it was (the previous files
 /// restored, new ones removed), so the previous set stays whole.
 pub fn commit_staged(files: &[(PathBuf, PathBuf)], lock_on: &Path) -> Result<()> {
+    commit_staged_then(files, lock_on, || ())
+}
+
+/// [`commit_staged`], then `after` while the locks are still held (a flight removes the
+/// frames of an earlier, longer run there, so a signal finds either set whole).
+pub fn commit_staged_then<T>(
+    files: &[(PathBuf, PathBuf)],
+    lock_on: &Path,
+    after: impl FnOnce() -> T,
+) -> Result<T> {
     let _pair = PairLock::acquire(lock_on)?;
     let _g = commit_guard(lock_on)?;
     for (_, target) in files {
@@ -585,7 +654,7 @@ pub fn commit_staged(files: &[(PathBuf, PathBuf)], lock_on: &Path) -> Result<()>
             let _ = fs::remove_file(k);
         }
     }
-    Ok(())
+    Ok(after())
 }
 
 /// Exclusive lock on a map's pair, across processes (see [`write_pair`]).
@@ -668,6 +737,8 @@ enum Ours {
     Temp,
     /// `.NAME.RANDOM.stratus-kept`: a previous PNG kept during a pair's commit.
     Kept,
+    /// `.stratus-frames.RANDOM`: a flight's staging folder ([`FRAMES_STAGING_PREFIX`]).
+    Frames,
 }
 
 fn ours(name: &str) -> Option<Ours> {
@@ -679,6 +750,9 @@ fn ours(name: &str) -> Option<Ours> {
     }
     if name.ends_with(KEPT_SUFFIX) {
         return Some(Ours::Kept);
+    }
+    if name.len() > FRAMES_STAGING_PREFIX.len() && name.starts_with(FRAMES_STAGING_PREFIX) {
+        return Some(Ours::Frames);
     }
     let i = name.rfind(".tmp")?;
     let (head, pid) = (&name[..i], &name[i + 4..]);
@@ -704,7 +778,9 @@ fn age(kind: Ours, m: &fs::Metadata) -> Option<Duration> {
 }
 
 /// Remove our temporaries in `dir` that are older than [`STALE_TEMP_AGE`] and not this
-/// process's: what a killed run left. Best effort; never follows a link.
+/// process's: what a killed run left. Temporaries and kept PNGs are files, staging folders
+/// ([`StagingDir`]) folders: anything else under such a name is left alone. Best effort;
+/// never follows a link.
 fn sweep_stale(dir: &Path) {
     let Ok(entries) = fs::read_dir(dir) else {
         return;
@@ -717,11 +793,21 @@ fn sweep_stale(dir: &Path) {
         let Ok(m) = fs::symlink_metadata(&path) else {
             continue;
         };
-        if m.file_type().is_file()
+        let (file, folder) = (m.file_type().is_file(), m.file_type().is_dir());
+        let shape = match kind {
+            Ours::Temp => file || folder,
+            Ours::Kept => file,
+            Ours::Frames => folder,
+        };
+        if shape
             && age(kind, &m).is_some_and(|a| a > STALE_TEMP_AGE)
             && !lock(&LIVE).contains(&path)
         {
-            let _ = fs::remove_file(&path);
+            let _ = if folder {
+                fs::remove_dir_all(&path)
+            } else {
+                fs::remove_file(&path)
+            };
         }
     }
 }
@@ -737,6 +823,7 @@ mod tests {
             (".m.png.tmp1234", Ours::Temp),
             (".m.json.tmp7", Ours::Temp),
             (".m.png.Ab3dE9xYz1.stratus-kept", Ours::Kept),
+            (".stratus-frames.Ab3dE9xYz1", Ours::Frames),
         ] {
             assert_eq!(ours(name), Some(kind), "{name}");
         }
@@ -747,6 +834,8 @@ mod tests {
             ".m.png.tmp12a",
             "m.png.stratus-tmp",
             ".m.json.lock",
+            ".stratus-frames.",
+            "stratus-frames.Ab3dE9xYz1",
         ] {
             assert_eq!(ours(theirs), None, "{theirs}");
         }
@@ -866,6 +955,59 @@ mod tests {
             "a fresh temporary (maybe a live writer's) was removed"
         );
         assert!(user.exists(), "a file that is not ours was removed");
+    }
+
+    #[test]
+    fn stale_staging_folders_are_swept_and_fresh_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let frames = d.join(".stratus-frames.AAAAAAAAAA");
+        let series = d.join(".s.json.BBBBBBBBBB.stratus-tmp");
+        let fresh = d.join(".stratus-frames.CCCCCCCCCC");
+        let kept_dir = d.join(".m.png.DDDDDDDDDD.stratus-kept");
+        let old = SystemTime::now() - STALE_TEMP_AGE - Duration::from_secs(60);
+        for p in [&frames, &series, &fresh, &kept_dir] {
+            fs::create_dir(p).unwrap();
+            fs::write(p.join("frame-00000.png"), b"x").unwrap();
+            if p != &fresh {
+                File::open(p).unwrap().set_modified(old).unwrap();
+            }
+        }
+        let ours = StagingDir::create_in(d, FRAMES_STAGING_PREFIX).unwrap();
+        assert!(ours.path().exists());
+        assert!(
+            !frames.exists() && !series.exists(),
+            "stale staging folders stay"
+        );
+        assert!(fresh.exists(), "a fresh staging folder was removed");
+        assert!(
+            kept_dir.exists(),
+            "a folder under a kept PNG's name was removed"
+        );
+        let p = ours.path().to_path_buf();
+        drop(ours);
+        assert!(!p.exists(), "a dropped staging folder stays");
+    }
+
+    #[test]
+    fn a_staged_set_commits_and_runs_its_after_step_under_the_lock() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let staging = StagingDir::create_in(d, FRAMES_STAGING_PREFIX).unwrap();
+        fs::write(d.join("a"), b"old").unwrap();
+        let files: Vec<(PathBuf, PathBuf)> = ["a", "b"]
+            .iter()
+            .map(|n| {
+                fs::write(staging.path().join(n), n.as_bytes()).unwrap();
+                (staging.path().join(n), d.join(n))
+            })
+            .collect();
+        let lock_file = PairLock::lock_path(&d.join("b"));
+        let held = commit_staged_then(&files, &d.join("b"), || lock_file.exists()).unwrap();
+        assert!(held, "the after step ran without the lock");
+        assert_eq!(fs::read(d.join("a")).unwrap(), b"a");
+        assert_eq!(fs::read(d.join("b")).unwrap(), b"b");
+        assert!(!lock_file.exists());
     }
 
     #[test]

@@ -208,91 +208,13 @@ pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
         .default_size(260.0)
         .show(ui, |ui| {
             ui.heading("Stratus");
-            egui::ComboBox::from_label("quality")
-                .selected_text(c.preset.name())
-                .show_ui(ui, |ui| {
-                    for p in Preset::ALL {
-                        ui.selectable_value(&mut c.preset, p, p.name());
-                    }
-                });
-            ui.add(egui::Slider::new(&mut c.render_scale, 0.1..=1.0).text("render scale"));
-            ui.checkbox(&mut c.reproject, "reprojection (march a subset a frame)");
-            ui.add(
-                egui::Slider::new(&mut c.visibility_km, 1.0..=200.0)
-                    .logarithmic(true)
-                    .text("visibility (km)"),
-            );
-            let (lo, hi) = c.time_range_h;
-            ui.add(egui::Slider::new(&mut c.time_offset_h, lo..=hi).text(c.time_label));
-            ui.horizontal(|ui| {
-                ui.label("time runs");
-                for r in Rate::ALL {
-                    ui.selectable_value(&mut c.time_rate, r, r.name());
-                }
-            });
+            quality_and_time(ui, c);
             ui.separator();
-            ui.label("layers");
-            ui.horizontal(|ui| {
-                for (k, name) in ["low", "middle", "high"].iter().enumerate() {
-                    if c.present[k] {
-                        ui.checkbox(&mut c.layers_on[k], *name);
-                    }
-                }
-            });
-            ui.add_enabled_ui(c.rh_cr_editable, |ui| {
-                for (k, name) in ["rh_cr low", "rh_cr middle", "rh_cr high"]
-                    .iter()
-                    .enumerate()
-                    .filter(|(k, _)| c.present[*k])
-                {
-                    if ui
-                        .add(egui::Slider::new(&mut c.rh_cr[k], 0.0..=0.99).text(*name))
-                        .changed()
-                    {
-                        act.rh_cr_changed = true;
-                    }
-                }
-            });
-            if !c.rh_cr_editable {
-                ui.small("rh_cr needs the RH field: open a GRIB2 file (drop one here)");
-            }
+            layers(ui, c, &mut act);
             ui.separator();
-            ui.add(egui::Slider::new(&mut c.coverage, 0.0..=3.0).text("coverage ×"));
-            ui.add(egui::Slider::new(&mut c.density, 0.0..=5.0).text("density ×"));
-            ui.add(
-                egui::Slider::new(&mut c.extinction, 0.001..=0.2)
-                    .logarithmic(true)
-                    .text("absorption"),
-            );
-            ui.add(egui::Slider::new(&mut c.hg_g, -0.9..=0.9).text("HG g"));
-            ui.add(egui::Slider::new(&mut c.exposure, -6.0..=6.0).text("exposure EV"));
-            ui.checkbox(&mut c.sun_override, "sun override");
-            ui.add_enabled_ui(c.sun_override, |ui| {
-                ui.add(egui::Slider::new(&mut c.sun_azimuth, 0.0..=360.0).text("sun azimuth"));
-                ui.add(egui::Slider::new(&mut c.sun_elevation, -20.0..=90.0).text("sun elevation"));
-            });
+            look(ui, c);
             ui.separator();
-            ui.horizontal(|ui| {
-                ui.label("teleport");
-                ui.text_edit_singleline(&mut c.teleport)
-                    .on_hover_text("lat, lon, alt_m");
-            });
-            if ui.button("go").clicked() {
-                let v: Vec<f64> = c
-                    .teleport
-                    .split(',')
-                    .filter_map(|p| p.trim().parse().ok())
-                    .collect();
-                if v.len() == 3
-                    && v.iter().all(|x| x.is_finite())
-                    && (-90.0..=90.0).contains(&v[0])
-                    && v[2] >= 0.0
-                {
-                    act.teleport = Some((v[0], v[1], v[2]));
-                } else {
-                    c.status = "teleport: give lat, lon, alt_m (alt ≥ 0)".into();
-                }
-            }
+            teleport(ui, c, &mut act);
             ui.horizontal(|ui| {
                 ui.checkbox(&mut c.paused, "pause (Space)");
                 if ui.button("screenshot (F12)").clicked() {
@@ -308,4 +230,102 @@ pub fn panel(ui: &mut egui::Ui, c: &mut Controls) -> Actions {
             }
         });
     act
+}
+
+/// The panel's first group: quality, render scale, reprojection, visibility and the clock.
+fn quality_and_time(ui: &mut egui::Ui, c: &mut Controls) {
+    egui::ComboBox::from_label("quality")
+        .selected_text(c.preset.name())
+        .show_ui(ui, |ui| {
+            for p in Preset::ALL {
+                ui.selectable_value(&mut c.preset, p, p.name());
+            }
+        });
+    ui.add(egui::Slider::new(&mut c.render_scale, 0.1..=1.0).text("render scale"));
+    ui.checkbox(&mut c.reproject, "reprojection (march a subset a frame)");
+    ui.add(
+        egui::Slider::new(&mut c.visibility_km, 1.0..=200.0)
+            .logarithmic(true)
+            .text("visibility (km)"),
+    );
+    let (lo, hi) = c.time_range_h;
+    ui.add(egui::Slider::new(&mut c.time_offset_h, lo..=hi).text(c.time_label));
+    ui.horizontal(|ui| {
+        ui.label("time runs");
+        for r in Rate::ALL {
+            ui.selectable_value(&mut c.time_rate, r, r.name());
+        }
+    });
+}
+
+/// The layers present, each switchable, and their rh_cr where the RH field is at hand.
+fn layers(ui: &mut egui::Ui, c: &mut Controls, act: &mut Actions) {
+    ui.label("layers");
+    ui.horizontal(|ui| {
+        for (k, name) in ["low", "middle", "high"].iter().enumerate() {
+            if c.present[k] {
+                ui.checkbox(&mut c.layers_on[k], *name);
+            }
+        }
+    });
+    ui.add_enabled_ui(c.rh_cr_editable, |ui| {
+        for (k, name) in ["rh_cr low", "rh_cr middle", "rh_cr high"]
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| c.present[*k])
+        {
+            if ui
+                .add(egui::Slider::new(&mut c.rh_cr[k], 0.0..=0.99).text(*name))
+                .changed()
+            {
+                act.rh_cr_changed = true;
+            }
+        }
+    });
+    if !c.rh_cr_editable {
+        ui.small("rh_cr needs the RH field: open a GRIB2 file (drop one here)");
+    }
+}
+
+/// The look: coverage and density multipliers, absorption, phase, exposure, the Sun.
+fn look(ui: &mut egui::Ui, c: &mut Controls) {
+    ui.add(egui::Slider::new(&mut c.coverage, 0.0..=3.0).text("coverage ×"));
+    ui.add(egui::Slider::new(&mut c.density, 0.0..=5.0).text("density ×"));
+    ui.add(
+        egui::Slider::new(&mut c.extinction, 0.001..=0.2)
+            .logarithmic(true)
+            .text("absorption"),
+    );
+    ui.add(egui::Slider::new(&mut c.hg_g, -0.9..=0.9).text("HG g"));
+    ui.add(egui::Slider::new(&mut c.exposure, -6.0..=6.0).text("exposure EV"));
+    ui.checkbox(&mut c.sun_override, "sun override");
+    ui.add_enabled_ui(c.sun_override, |ui| {
+        ui.add(egui::Slider::new(&mut c.sun_azimuth, 0.0..=360.0).text("sun azimuth"));
+        ui.add(egui::Slider::new(&mut c.sun_elevation, -20.0..=90.0).text("sun elevation"));
+    });
+}
+
+/// The teleport field and its button: a position typed as `lat, lon, alt_m`, checked.
+fn teleport(ui: &mut egui::Ui, c: &mut Controls, act: &mut Actions) {
+    ui.horizontal(|ui| {
+        ui.label("teleport");
+        ui.text_edit_singleline(&mut c.teleport)
+            .on_hover_text("lat, lon, alt_m");
+    });
+    if ui.button("go").clicked() {
+        let v: Vec<f64> = c
+            .teleport
+            .split(',')
+            .filter_map(|p| p.trim().parse().ok())
+            .collect();
+        if v.len() == 3
+            && v.iter().all(|x| x.is_finite())
+            && (-90.0..=90.0).contains(&v[0])
+            && v[2] >= 0.0
+        {
+            act.teleport = Some((v[0], v[1], v[2]));
+        } else {
+            c.status = "teleport: give lat, lon, alt_m (alt ≥ 0)".into();
+        }
+    }
 }

@@ -9,6 +9,7 @@ use stratus_ingest::region::parse_size;
 
 use stratus::picture::write_png;
 use stratus::render::{gpu, Gpu, Renderer};
+use stratus::scene::Scene;
 use stratus::{bench, scenes};
 
 use super::files::check_out;
@@ -108,7 +109,7 @@ fn reprojection(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
         .map
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("--reprojection needs --map"))?;
-    let map = CloudMap::load(map_path)?;
+    let map = Scene::open(map_path).map_at(None)?;
     let path = stratus::flight::FlightPath::load(&a.path)?;
     let time = path_time(&path)
         .or(map.meta.source.valid_time)

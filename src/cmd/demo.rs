@@ -8,8 +8,8 @@ use std::time::Instant;
 use anyhow::Context;
 use stratus::picture::save_png;
 use stratus::render::Renderer;
+use stratus::scene::Scene;
 use stratus::{scenes, score};
-use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
 
 use super::files::check_out;
@@ -49,7 +49,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let png = a.out.join("cloudmap.png");
     let sidecar = plan.write(&png, &|d| pb.set_position(d as u64))?;
     pb.finish_and_clear();
-    let map = CloudMap::load(&sidecar)?;
+    let map = Scene::open(&sidecar).map_at(None)?;
     out!(
         "ingested {} → {} ({}×{})",
         shown(&grib),

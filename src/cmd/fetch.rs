@@ -18,6 +18,7 @@ use stratus_ingest::fetch::http::{Client, Policy};
 use stratus_ingest::fetch::select::{self, DEFAULT_FIELDS, DEFAULT_LEVELS};
 use stratus_ingest::fetch::source::{self, Run};
 use stratus_ingest::fetch::{default_cache_dir, Fetcher, Progress};
+use stratus_ingest::output::remove_if_empty;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -134,14 +135,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("{}: --out must be a folder", shown(&args.out));
     }
     // Folders this run creates are removed again when empty: on an error here, on a signal
-    // by the handler (cleanup), never one that existed before.
-    let created_out = super::flight::create_folder(&args.out)?;
+    // by the handler (output::cleanup_temps), never one that existed before.
+    let created_out = super::files::create_folder(&args.out)?;
     let (cache_dir, ours) = match &args.cache {
         Some(c) => (c.clone(), false),
         None => (default_cache_dir(&args.out), true),
     };
     let result = (|| {
-        let created_cache = super::flight::create_folder(&cache_dir)?;
+        let created_cache = super::files::create_folder(&cache_dir)?;
         let cache = Cache::open(&cache_dir, &|| {
             let _ = writeln!(
                 std::io::stderr().lock(),
@@ -182,13 +183,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     result?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// Remove `dirs` (outermost first, as created) that are empty, innermost first.
-fn remove_if_empty(dirs: &[PathBuf]) {
-    for d in dirs.iter().rev() {
-        let _ = std::fs::remove_dir(d);
-    }
 }
 
 fn fetch_steps(fetcher: &Fetcher, steps: &[u32]) -> anyhow::Result<()> {

@@ -1,10 +1,13 @@
 //! What a command may write to: checked before any work, so a bad output fails at once and
-//! nothing is rendered for nothing. The rules are the ingest library's
-//! ([`stratus_ingest::output`]): only absent or regular files are replaced, and never one of
-//! the command's own inputs.
+//! nothing is rendered for nothing, and the output folders it creates. The rules are the
+//! ingest library's ([`stratus_ingest::output`], the program's one file-commit module): only
+//! absent or regular files are replaced, never one of the command's own inputs, and a folder
+//! a run created is removed again when it is left empty by an error or a signal.
 
 use std::path::{Path, PathBuf};
 
+use anyhow::Context;
+use stratus_ingest::error::shown;
 use stratus_ingest::output::{check_output, ensure_not_input};
 
 /// Refuse `out` when it is not absent or a regular file, or is one of `inputs`.
@@ -15,9 +18,11 @@ pub fn check_out(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The files a CloudMap (or a series) is read from: its sidecar and, as far as the sidecars
-/// can be read, its images. (A sidecar that cannot be read fails the command when the map is
-/// loaded.)
-pub fn map_files(sidecar: &Path) -> Vec<PathBuf> {
-    stratus_ingest::series::map_files(sidecar)
+/// Create the output folder `out` and any missing parents; returns the folders created,
+/// outermost first, each removed on a signal if still empty
+/// ([`stratus_ingest::output::create_folder`]); on an error the command removes them
+/// ([`stratus_ingest::output::remove_if_empty`]).
+pub fn create_folder(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    stratus_ingest::output::create_folder(out)
+        .with_context(|| format!("{}: cannot create", shown(out)))
 }

@@ -22,17 +22,19 @@ use anyhow::Context;
 use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
-use stratus_ingest::output::{check_output, STALE_TEMP_AGE};
+use stratus_ingest::output::{
+    commit_staged_then, remove_if_empty, StagingDir, FRAMES_STAGING_PREFIX,
+};
 use stratus_ingest::region::parse_size;
 
 use stratus::flight::{FlightPath, DEFAULT_MAX_FRAMES};
 use stratus::follow::{Fix, Follower, Source, KNOT, STALE_AFTER};
 use stratus::picture::save_png;
 use stratus::render::{Camera, Renderer, Settings, View};
+use stratus::scene::Scene;
 
-use super::files::{check_out, map_files};
+use super::files::{check_out, create_folder};
 use super::options::{camera, progress_bar, LookOpts, EYE_HEIGHT_M};
-use crate::cleanup::{self, Removal};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -79,9 +81,6 @@ pub struct Args {
 /// at 640×360, so 1 byte is an estimate with room, not a bound (a frame could take up to 4).
 const FRAME_BYTES_PER_PIXEL: f64 = 1.0;
 
-/// The staging folder a run renders into, inside the output folder.
-const STAGING_PREFIX: &str = ".stratus-frames.";
-
 /// The MP4 ffmpeg makes of the frames.
 const MP4: &str = "flight.mp4";
 
@@ -107,7 +106,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--fps {} must be in (0, 240]", a.fps);
     }
     let (w, h) = parse_size(&a.size)?;
-    let mut inputs = map_files(&a.map);
+    let scene = Scene::open(&a.map);
+    let mut inputs = scene.files();
     let (mut source, n) = match (&a.path, &a.follow) {
         (Some(file), _) => {
             let path = FlightPath::load(file)?;
@@ -126,7 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     check_folder(&a.out, &inputs, n)?;
     check_space(&a.out, n, w, h)?;
     // A series: the GPU holds the two steps around each frame's time and blends them.
-    let (map, timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
+    let (map, timeline) = scene.for_renderer(a.look.moment()?)?;
     let mut settings = a.look.settings(&map, &a.map)?;
     if a.reprojection {
         settings.reprojection = stratus::render::Reprojection::On { full_reset: true };
@@ -140,9 +140,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let result = render_and_commit(&a, &mut source, n, (w, h), (&map, timeline), &settings);
     if result.is_err() {
         // A folder this run created goes too (it is empty: the staging folder is gone).
-        for d in created.iter().rev() {
-            let _ = std::fs::remove_dir(d);
-        }
+        remove_if_empty(&created);
     }
     let (removed, mp4, lifted) = result?;
     if let Some(line) = lifted.line(n) {
@@ -245,24 +243,6 @@ fn free_bytes(path: &Path) -> Option<u64> {
     stratus_ingest::fetch::space::free_bytes(existing)
 }
 
-/// Create `out` and any missing parents; returns the folders created, outermost first, each
-/// removed on a signal if still empty.
-pub(crate) fn create_folder(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let mut missing: Vec<PathBuf> = out
-        .ancestors()
-        .filter(|p| !p.as_os_str().is_empty())
-        .take_while(|p| std::fs::symlink_metadata(p).is_err())
-        .map(Path::to_path_buf)
-        .collect();
-    missing.reverse();
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", shown(out)))?;
-    for d in &missing {
-        // Kept tracked for the rest of the run: these are removed on a signal when empty.
-        std::mem::forget(cleanup::track_dir(d, Removal::IfEmpty));
-    }
-    Ok(missing)
-}
-
 enum Mp4 {
     Made,
     Failed,
@@ -280,13 +260,8 @@ fn render_and_commit(
     (map, mut timeline): (&CloudMap, Option<stratus::timeline::Timeline>),
     settings: &Settings,
 ) -> anyhow::Result<(usize, Mp4, Lifted)> {
-    let staging = tempfile::Builder::new()
-        .prefix(STAGING_PREFIX)
-        .rand_bytes(10)
-        .tempdir_in(&a.out)
-        .with_context(|| format!("{}: cannot create a staging folder", shown(&a.out)))?;
-    let _tracked = cleanup::track_dir(staging.path(), Removal::Whole);
-    sweep_stale_staging(&a.out, staging.path());
+    // Stale staging folders of a killed run are swept as this one is made.
+    let staging = StagingDir::create_in(&a.out, FRAMES_STAGING_PREFIX)?;
     let mut r = Renderer::new(a.look.gpu()?, map);
     if let Cameras::Follow(f) = &mut *source {
         // The first frames pay for what the renderer builds on first use (tens of seconds on a
@@ -318,26 +293,30 @@ fn render_and_commit(
     pb.finish_and_clear();
     let mp4 = make_mp4(staging.path(), a.fps);
 
-    let _commit = cleanup::commit_guard();
-    // Checked again: something may have appeared under these names while we rendered.
-    for i in 0..n {
-        check_output(&a.out.join(frame_name(i)))?;
-    }
-    for i in 0..n {
-        let name = frame_name(i);
-        let to = a.out.join(&name);
-        std::fs::rename(staging.path().join(&name), &to)
-            .with_context(|| format!("{}: cannot move the frame into place", shown(&to)))?;
-    }
+    // Every frame and the MP4 in place as one set (checked again first: something may have
+    // appeared under these names while we rendered), then the frames of an earlier, longer run
+    // removed, all under the commit lock.
+    let mut files: Vec<(PathBuf, PathBuf)> = (0..n)
+        .map(|i| {
+            (
+                staging.path().join(frame_name(i)),
+                a.out.join(frame_name(i)),
+            )
+        })
+        .collect();
     if matches!(mp4, Mp4::Made) {
-        let to = a.out.join(MP4);
-        check_output(&to)?;
-        std::fs::rename(staging.path().join(MP4), &to)
-            .with_context(|| format!("{}: cannot move into place", shown(&to)))?;
+        files.push((staging.path().join(MP4), a.out.join(MP4)));
     }
+    let removed = commit_staged_then(&files, &a.out.join(MP4), || earlier_frames(&a.out, n))??;
+    Ok((removed, mp4, lifted))
+}
+
+/// Remove the frames of an earlier run numbered `n` or more (only regular files named exactly
+/// as this command names frames); returns how many.
+fn earlier_frames(out: &Path, n: u64) -> anyhow::Result<usize> {
     let mut removed = 0;
-    for e in std::fs::read_dir(&a.out)
-        .with_context(|| format!("{}: cannot list", shown(&a.out)))?
+    for e in std::fs::read_dir(out)
+        .with_context(|| format!("{}: cannot list", shown(out)))?
         .flatten()
     {
         let is_file = e.file_type().is_ok_and(|t| t.is_file());
@@ -348,7 +327,7 @@ fn render_and_commit(
             removed += 1;
         }
     }
-    Ok((removed, mp4, lifted))
+    Ok(removed)
 }
 
 /// Frame `i`'s settings: the path's time where it keys one, and a series' steps around it
@@ -403,32 +382,6 @@ impl Lifted {
             "warning: {} of {n} frames were below the terrain and were rendered {EYE_HEIGHT_M} m above it instead (first: frame {i} at {lat:.3},{lon:.3}, {alt:.0} m under ground at {ground:.0} m)",
             self.frames
         ))
-    }
-}
-
-/// Staging folders a killed run left in `out` (older than the ingest library's
-/// [`STALE_TEMP_AGE`]; never this run's, never through a link).
-fn sweep_stale_staging(out: &Path, ours: &Path) {
-    let Ok(entries) = std::fs::read_dir(out) else {
-        return;
-    };
-    for e in entries.flatten() {
-        let p = e.path();
-        let stale = e
-            .file_name()
-            .to_str()
-            .is_some_and(|n| n.starts_with(STAGING_PREFIX))
-            && p != ours
-            && std::fs::symlink_metadata(&p).is_ok_and(|m| {
-                m.is_dir()
-                    && m.modified()
-                        .ok()
-                        .and_then(|t| t.elapsed().ok())
-                        .is_some_and(|age| age > STALE_TEMP_AGE)
-            });
-        if stale {
-            let _ = std::fs::remove_dir_all(&p);
-        }
     }
 }
 

@@ -9,8 +9,9 @@ use stratus::app::moment::Rate;
 use stratus::app::{fly, FlyOptions};
 use stratus::follow::{Follower, Source};
 use stratus::render::Preset;
+use stratus::scene::Scene;
 
-use super::files::{check_out, map_files};
+use super::files::check_out;
 use super::options::{parse_time, progress_bar, IngestOpts};
 
 #[derive(clap::Args, Debug)]
@@ -80,11 +81,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.frames == Some(0) {
         anyhow::bail!("--frames must be at least 1");
     }
+    // A sidecar is a scene; anything else a GRIB2 file ingested in memory.
+    let scene = is_json(&a.input).then(|| Scene::open(&a.input));
     if let Some(shot) = &a.screenshot {
-        let inputs = if is_json(&a.input) {
-            map_files(&a.input)
-        } else {
-            vec![a.input.clone()]
+        let inputs = match &scene {
+            Some(s) => s.files(),
+            None => vec![a.input.clone()],
         };
         check_out(shot, &inputs)?;
     }
@@ -118,8 +120,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .as_deref()
         .map(stratus::flight::FlightPath::load)
         .transpose()?;
-    let (map, plan, timeline) = if is_json(&a.input) {
-        let (map, timeline) = stratus::timeline::open_scene(&a.input, time)?;
+    let (map, plan, timeline) = if let Some(scene) = scene {
+        let (map, timeline) = scene.for_renderer(time)?;
         (map, None, timeline)
     } else {
         let plan = a.ingest.plan(&a.input)?;

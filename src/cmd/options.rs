@@ -8,6 +8,7 @@ use chrono::{DateTime, Utc};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use stratus::render::{defaults, gpu, Camera, Gpu, Preset, Settings};
+use stratus::scene::Scene;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::forecast::{Forecast, LevelSelect, DEFAULT_TOP_HPA};
 use stratus_ingest::ground::GroundSource;
@@ -122,9 +123,9 @@ impl LookOpts {
     }
 
     /// The map `--map` names at `--time`: a series' moment (its first step without a time) or
-    /// a plain CloudMap.
-    pub fn open_map(&self, path: &Path) -> anyhow::Result<CloudMap> {
-        Ok(stratus_ingest::series::open_map(path, self.moment()?)?)
+    /// a plain CloudMap ([`Scene::map_at`]).
+    pub fn open_map(&self, scene: Scene) -> anyhow::Result<CloudMap> {
+        Ok(scene.map_at(self.moment()?)?)
     }
 
     /// The settings for `map`, read from `source` (its sidecar, or the GRIB file it was

@@ -5,9 +5,9 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use stratus::scene::Scene;
 use stratus_ingest::error::shown;
 use stratus_ingest::ground::GroundSource;
-use stratus_ingest::series::open_map;
 
 use super::options::{parse_lat_lon, parse_time};
 
@@ -33,7 +33,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (lat, lon) = parse_lat_lon(&a.at, "--at")?;
     let time = a.time.as_deref().map(parse_time).transpose()?;
-    let map = open_map(&a.map, time)?;
+    let map = Scene::open(&a.map).map_at(time)?;
     let r = map.meta.region;
     let Some(p) = map.probe(lat, lon) else {
         anyhow::bail!(

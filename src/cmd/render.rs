@@ -7,7 +7,9 @@ use stratus::picture::save_png;
 use stratus::render::{Renderer, View};
 use stratus_ingest::region::parse_size;
 
-use super::files::{check_out, map_files};
+use stratus::scene::Scene;
+
+use super::files::check_out;
 use super::options::{parse_camera, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -54,9 +56,10 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    check_out(&a.out, &map_files(&a.map))?;
+    let scene = Scene::open(&a.map);
+    check_out(&a.out, &scene.files())?;
     // A series is blended on the GPU (the two steps around --time), as `flight` does.
-    let (map, mut timeline) = stratus::timeline::open_scene(&a.map, a.look.moment()?)?;
+    let (map, mut timeline) = scene.for_renderer(a.look.moment()?)?;
     let mut settings = a.look.settings(&map, &a.map)?;
     if a.reprojection {
         settings.reprojection = stratus::render::Reprojection::On { full_reset: true };

@@ -11,7 +11,9 @@ use stratus::picture::save_png;
 use stratus::render::Renderer;
 use stratus::score::{self, Report};
 
-use super::files::{check_out, map_files};
+use stratus::scene::Scene;
+
+use super::files::check_out;
 use super::options::{IngestOpts, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -51,13 +53,13 @@ pub struct Args {
 }
 
 pub fn load_or_ingest(
-    map: &Option<PathBuf>,
+    scene: Option<Scene>,
     grib: &Option<PathBuf>,
     ingest: &IngestOpts,
     look: &LookOpts,
 ) -> anyhow::Result<CloudMap> {
-    match (map, grib) {
-        (Some(m), _) => look.open_map(m),
+    match (scene, grib) {
+        (Some(s), _) => look.open_map(s),
         (None, Some(g)) => Ok(ingest.plan(g)?.build()),
         (None, None) => anyhow::bail!("give --map MAP.json or --grib FILE.grib2"),
     }
@@ -118,8 +120,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             anyhow::bail!("--min-dice {min} must be a number in 0..=1 (a DSC)");
         }
     }
-    let inputs = match (&a.map, &a.grib) {
-        (Some(m), _) => map_files(m),
+    let scene = a.map.as_deref().map(Scene::open);
+    let inputs = match (&scene, &a.grib) {
+        (Some(s), _) => s.files(),
         (None, Some(g)) => vec![g.clone()],
         (None, None) => vec![],
     };
@@ -129,7 +132,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         check_out(d, &inputs)?;
     }
-    let map = load_or_ingest(&a.map, &a.grib, &a.ingest, &a.look)?;
+    let map = load_or_ingest(scene, &a.grib, &a.ingest, &a.look)?;
     let source = a
         .map
         .as_ref()

@@ -14,7 +14,9 @@ use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
 use stratus_ingest::region::parse_size;
 
-use super::files::{check_out, map_files};
+use stratus::scene::Scene;
+
+use super::files::check_out;
 use super::options::{parse_lat_lon, LookOpts};
 
 #[derive(clap::Args, Debug)]
@@ -48,11 +50,12 @@ const LAYER_COLOURS: [[u8; 3]; 3] = [[255, 150, 40], [90, 220, 90], [90, 170, 25
 const GROUND: [u8; 3] = [120, 90, 60];
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    check_out(&a.out, &map_files(&a.map))?;
+    let scene = Scene::open(&a.map);
+    check_out(&a.out, &scene.files())?;
     let from = parse_lat_lon(&a.from, "--from")?;
     let to = parse_lat_lon(&a.to, "--to")?;
     let (w, h) = parse_size(&a.size)?;
-    let map = a.look.open_map(&a.map)?;
+    let map = a.look.open_map(scene)?;
     let settings = a.look.settings(&map, &a.map)?;
     let (p0, p1) = (up_at(from.0, from.1), up_at(to.0, to.1));
     let angle = p0.dot(p1).clamp(-1.0, 1.0).acos();

@@ -9,12 +9,13 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use serde::Serialize;
+use stratus::scene::Scene;
 use stratus::score::{compare, MAP_THRESHOLD};
 use stratus_ingest::cloudmap::{CloudMap, COVERAGE_FULL};
 use stratus_ingest::error::shown;
 use stratus_ingest::meta::{show_num, LayerKind};
+use stratus_ingest::series::advect;
 use stratus_ingest::series::meta::show_hour;
-use stratus_ingest::series::{advect, Series};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -64,13 +65,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             show_num(a.from)
         );
     }
-    if !stratus_ingest::series::sidecar_is_series(&a.map)? {
+    let Some(series) = Scene::open(&a.map).into_series()? else {
         anyhow::bail!(
             "{}: not a series sidecar; give the NAME.json `stratus ingest` wrote for several steps",
             shown(&a.map)
         );
-    }
-    let series = Series::load(&a.map)?;
+    };
     let step = |h: f64| {
         series.step_at_hour(h).ok_or_else(|| {
             anyhow::anyhow!(

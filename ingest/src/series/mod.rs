@@ -43,15 +43,21 @@ pub fn is_series(path: &Path) -> bool {
 /// Whether the sidecar `path` is a series sidecar; an error when it is no sidecar at all (not
 /// a regular file, unreadable, not JSON: [`crate::input::read_sidecar_text`]).
 pub fn sidecar_is_series(path: &Path) -> Result<bool> {
+    let text = crate::input::read_sidecar_text(path)?;
+    Ok(text_is_series(&text))
+}
+
+/// Whether a sidecar's text (already read: [`crate::input::read_sidecar_text`]) is a series
+/// sidecar's.
+pub fn text_is_series(text: &str) -> bool {
     #[derive(serde::Deserialize)]
     struct Peek {
         format: Option<serde_json::Value>,
     }
-    let text = crate::input::read_sidecar_text(path)?;
-    Ok(serde_json::from_str::<Peek>(&text)
+    serde_json::from_str::<Peek>(text)
         .ok()
         .and_then(|p| p.format)
-        .is_some_and(|f| f == SERIES_FORMAT))
+        .is_some_and(|f| f == SERIES_FORMAT)
 }
 
 /// The map a `--map` argument names at `time`: a series' moment ([`Series::at`]; its first
@@ -88,7 +94,13 @@ impl Series {
     /// error naming the series sidecar, the step and the file.
     pub fn load(path: &Path) -> Result<Series> {
         let text = crate::input::read_sidecar_text(path)?;
-        let meta: SeriesMeta = serde_json::from_str(&text)
+        Self::from_text(path, &text)
+    }
+
+    /// [`Series::load`] of the series sidecar's text already read
+    /// ([`crate::input::read_sidecar_text`]); `path` names it and locates its steps.
+    pub fn from_text(path: &Path, text: &str) -> Result<Series> {
+        let meta: SeriesMeta = serde_json::from_str(text)
             .map_err(|e| IngestError::series(path, format!("series sidecar is not valid: {e}")))?;
         meta.validate()
             .map_err(|e| IngestError::series(path, format!("series sidecar: {e}")))?;
@@ -167,7 +179,12 @@ impl Series {
             )
         })?;
         let sidecar = folder(&self.path).join(&s.map);
-        CloudMap::load(&sidecar).map_err(|e| {
+        // The step's sidecar was read and checked by `load`: only its images are read now.
+        let read = match self.step_metas.get(k) {
+            Some(m) => CloudMap::load_with(&sidecar, m.clone()),
+            None => CloudMap::load(&sidecar),
+        };
+        read.map_err(|e| {
             IngestError::series(
                 &self.path,
                 format!("step {}: {e}", meta::show_hour(s.forecast_hour)),
