@@ -11,18 +11,12 @@ use crate::error::{IngestError, Result};
 use crate::grib::{self, Field, MessageInfo};
 use crate::ground::GroundInputs;
 use crate::region::Region;
+pub use crate::weather::RhLevel;
 use crate::weather::WeatherInputs;
 
 /// Top of the troposphere the default all-layer ingest folds in, hPa: GFS also carries RH up
 /// to 10 hPa, where no weather cloud forms and the altitude (~30 km) would put "cirrus" in space.
 pub const DEFAULT_TOP_HPA: f64 = 100.0;
-
-/// RH on one isobaric level, in percent, NaN-free, rows north→south.
-#[derive(Debug, Clone)]
-pub struct RhLevel {
-    pub pressure_hpa: f64,
-    pub field: Field,
-}
 
 /// Which RH levels to load.
 #[derive(Debug, Clone, Copy)]

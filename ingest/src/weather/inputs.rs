@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
-use crate::grib::{self, LatLonGrid, MessageInfo, SurfaceType};
-use crate::meta::LayerKind;
+use crate::grib::{self, Field, LatLonGrid, MessageInfo, SurfaceType};
+use crate::layer::LayerKind;
 
 use super::kind::{layer_span_hpa, optical_thickness, ICE_BELOW_K};
 
@@ -16,6 +16,13 @@ const G: f64 = 9.80665;
 
 /// A field on the RH grid, row-major north→south; NaN where missing (bit-map).
 pub type Grid32 = Vec<f32>;
+
+/// RH on one isobaric level, in percent, NaN-free, rows north→south.
+#[derive(Debug, Clone)]
+pub struct RhLevel {
+    pub pressure_hpa: f64,
+    pub field: Field,
+}
 
 /// What the file holds besides RH, on the RH grid.
 #[derive(Debug, Clone, Default)]
