@@ -168,4 +168,5 @@ mod tests {
             assert!(z > prev);
             prev = z;
         }
-    }}
+    }
+}

@@ -198,97 +198,10 @@ impl CloudMapMeta {
             ));
         }
         for (i, l) in self.layers.iter().enumerate() {
-            let at = format!("layers[{i}] ({})", l.kind.name());
-            if self.layers[..i].iter().any(|o| o.kind == l.kind) {
-                return Err(format!("{at}: a second {} layer", l.kind.name()));
-            }
-            if l.channel != l.kind.channel() {
-                return Err(format!(
-                    "{at}.channel: {} but a {} layer is in channel {}",
-                    l.channel,
-                    l.kind.name(),
-                    l.kind.channel()
-                ));
-            }
-            for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
-                if !ALTITUDE_RANGE_M.contains(&v) {
-                    return Err(format!(
-                        "{at}.{name}: {} m is outside {}..={} m",
-                        show_num(v),
-                        ALTITUDE_RANGE_M.start(),
-                        ALTITUDE_RANGE_M.end()
-                    ));
-                }
-            }
-            if l.base_m >= l.top_m {
-                return Err(format!(
-                    "{at}: base_m {} m is not below top_m {} m",
-                    show_num(l.base_m),
-                    show_num(l.top_m)
-                ));
-            }
-            crate::layer::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
-            for (name, v) in [
-                ("mean_coverage", l.mean_coverage),
-                ("max_coverage", l.max_coverage),
-            ] {
-                if !(0.0..=1.0).contains(&v) {
-                    return Err(format!("{at}.{name}: {} is outside 0..=1", show_num(v)));
-                }
-            }
-            if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
-                return Err(format!(
-                    "{at}.levels_hpa: {} hPa is not a pressure",
-                    show_num(*p)
-                ));
-            }
-            if let Some(st) = &l.structure {
-                for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
-                    if !ALTITUDE_RANGE_M.contains(&v) {
-                        return Err(format!(
-                            "{at}.structure.{name}: {} m is outside {}..={} m",
-                            show_num(v),
-                            ALTITUDE_RANGE_M.start(),
-                            ALTITUDE_RANGE_M.end()
-                        ));
-                    }
-                }
-                let fractions = st.sources.values().chain(st.types.values());
-                if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
-                    return Err(format!(
-                        "{at}.structure: share {} is outside 0..=1",
-                        show_num(*v)
-                    ));
-                }
-            }
+            self.validate_layer(i, l)?;
         }
         if let Some(g) = &self.ground {
-            g.grid
-                .validate_as("ground.grid", &self.region, (self.width, self.height))?;
-            for (name, v) in [
-                ("height_min_m", g.height_min_m),
-                ("height_max_m", g.height_max_m),
-            ] {
-                if !ALTITUDE_RANGE_M.contains(&v) {
-                    return Err(format!(
-                        "ground.{name}: {} m is outside {}..={} m",
-                        show_num(v),
-                        ALTITUDE_RANGE_M.start(),
-                        ALTITUDE_RANGE_M.end()
-                    ));
-                }
-            }
-            if !g.fields.contains(&GroundField::Orography) {
-                return Err("ground.fields: no orography (a ground is made from it)".into());
-            }
-            if let Some((k, f)) = g
-                .fields
-                .iter()
-                .enumerate()
-                .find(|(k, f)| g.fields[..*k].contains(f))
-            {
-                return Err(format!("ground.fields[{k}]: {} listed twice", f.name()));
-            }
+            self.validate_ground(g)?;
         }
         let s = &self.source;
         for (name, v) in [
@@ -299,6 +212,108 @@ impl CloudMapMeta {
             if !v.is_finite() {
                 return Err(format!("source.{name}: {} is not a number", show_num(v)));
             }
+        }
+        Ok(())
+    }
+
+    /// [`validate_content`](Self::validate_content) of layer `i`: one layer of each kind in
+    /// its own channel, its band inside [`ALTITUDE_RANGE_M`] and ordered, its rh_cr, coverage,
+    /// levels and structure summary.
+    fn validate_layer(&self, i: usize, l: &LayerMeta) -> Result<(), String> {
+        let at = format!("layers[{i}] ({})", l.kind.name());
+        if self.layers[..i].iter().any(|o| o.kind == l.kind) {
+            return Err(format!("{at}: a second {} layer", l.kind.name()));
+        }
+        if l.channel != l.kind.channel() {
+            return Err(format!(
+                "{at}.channel: {} but a {} layer is in channel {}",
+                l.channel,
+                l.kind.name(),
+                l.kind.channel()
+            ));
+        }
+        for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
+            if !ALTITUDE_RANGE_M.contains(&v) {
+                return Err(format!(
+                    "{at}.{name}: {} m is outside {}..={} m",
+                    show_num(v),
+                    ALTITUDE_RANGE_M.start(),
+                    ALTITUDE_RANGE_M.end()
+                ));
+            }
+        }
+        if l.base_m >= l.top_m {
+            return Err(format!(
+                "{at}: base_m {} m is not below top_m {} m",
+                show_num(l.base_m),
+                show_num(l.top_m)
+            ));
+        }
+        crate::layer::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
+        for (name, v) in [
+            ("mean_coverage", l.mean_coverage),
+            ("max_coverage", l.max_coverage),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(format!("{at}.{name}: {} is outside 0..=1", show_num(v)));
+            }
+        }
+        if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+            return Err(format!(
+                "{at}.levels_hpa: {} hPa is not a pressure",
+                show_num(*p)
+            ));
+        }
+        if let Some(st) = &l.structure {
+            for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
+                if !ALTITUDE_RANGE_M.contains(&v) {
+                    return Err(format!(
+                        "{at}.structure.{name}: {} m is outside {}..={} m",
+                        show_num(v),
+                        ALTITUDE_RANGE_M.start(),
+                        ALTITUDE_RANGE_M.end()
+                    ));
+                }
+            }
+            let fractions = st.sources.values().chain(st.types.values());
+            if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
+                return Err(format!(
+                    "{at}.structure: share {} is outside 0..=1",
+                    show_num(*v)
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`validate_content`](Self::validate_content) of the ground: its lattice against the map,
+    /// its heights, and its fields (orography among them, none twice).
+    fn validate_ground(&self, g: &GroundMeta) -> Result<(), String> {
+        g.grid
+            .validate_as("ground.grid", &self.region, (self.width, self.height))?;
+        for (name, v) in [
+            ("height_min_m", g.height_min_m),
+            ("height_max_m", g.height_max_m),
+        ] {
+            if !ALTITUDE_RANGE_M.contains(&v) {
+                return Err(format!(
+                    "ground.{name}: {} m is outside {}..={} m",
+                    show_num(v),
+                    ALTITUDE_RANGE_M.start(),
+                    ALTITUDE_RANGE_M.end()
+                ));
+            }
+        }
+        if !g.fields.contains(&GroundField::Orography) {
+            return Err("ground.fields: no orography (a ground is made from it)".into());
+        }
+        if let Some((k, f)) = g
+            .fields
+            .iter()
+            .enumerate()
+            .find(|(k, f)| g.fields[..*k].contains(f))
+        {
+            return Err(format!("ground.fields[{k}]: {} listed twice", f.name()));
         }
         Ok(())
     }

@@ -284,11 +284,7 @@ fn prepare_levels(fc: &Forecast, opts: &IngestOptions, ni: usize, nj: usize) -> 
 }
 
 /// The map's sidecar content before any pixel is made: layers, their bands and sources.
-fn build_meta(
-    fc: &Forecast,
-    opts: &IngestOptions,
-    grid: &LatLonGrid,
-) -> Result<CloudMapMeta> {
+fn build_meta(fc: &Forecast, opts: &IngestOptions, grid: &LatLonGrid) -> Result<CloudMapMeta> {
     let pressures = fc.pressures();
     // Altitude of every loaded level: gh where present, else the standard atmosphere.
     let z: Vec<(f64, bool)> = pressures

@@ -4,7 +4,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::cloudmap::{extra_path, extra_writer, file_name, ground_writers, rgba16_writer, sidecar_json};
+use crate::cloudmap::{
+    extra_path, extra_writer, file_name, ground_writers, rgba16_writer, sidecar_json,
+};
 use crate::error::Result;
 use crate::meta::{ExtraImage, ExtraRole};
 use crate::output::{write_set, ExtraWriter};

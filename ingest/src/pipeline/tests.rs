@@ -66,8 +66,7 @@ fn the_geotiff_structure_is_the_images_decoded_and_needs_more_than_rh() {
                     StructureBand::Base(k) => m(sample_to_altitude(ms.base[p][k.channel()])),
                     StructureBand::Top(k) => m(sample_to_altitude(ms.top[p][k.channel()])),
                     StructureBand::Type(k) => {
-                        m(CloudType::from_code(ms.types[p][k.channel()])
-                            .map(|t| t.code() as f64))
+                        m(CloudType::from_code(ms.types[p][k.channel()]).map(|t| t.code() as f64))
                     }
                     StructureBand::Source(k) => {
                         m(unpack_source(ms.types[p][3], k.channel()).map(|s| s as u8 as f64))
