@@ -10,7 +10,7 @@ use crate::region::Region;
 /// Where the structure images' pixels lie (version 3; all five share it): `width`×`height`
 /// pixel centres on a lat/lon lattice, row 0 north, column 0 west. The structure comes from
 /// the forecast grid, so its images are stored at a resolution tied to that grid, never
-/// larger than the map ([`crate::structure::structure_grid`]); readers sample them by
+/// larger than the map ([`structure_grid`]); readers sample them by
 /// lat/lon: x = (lon − west) / dlon, y = (north − lat) / dlat, clamped to the outer centres.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct StructureGrid {

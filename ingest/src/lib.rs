@@ -59,5 +59,6 @@ pub mod weather;
 
 pub use cloudmap::CloudMap;
 pub use error::{IngestError, Result};
-pub use meta::{CloudMapMeta, LayerKind, LayerMeta};
+pub use layer::LayerKind;
+pub use meta::{CloudMapMeta, LayerMeta};
 pub use region::Region;

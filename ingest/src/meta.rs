@@ -1,6 +1,10 @@
 //! The CloudMap sidecar (`MAP.json`): what a CloudMap PNG covers and how it was made.
 //!
 //! The renderer and the scorer read only this and the PNG; nothing downstream re-reads GRIB.
+//!
+//! The schema alone: the vocabulary it names lives below it ([`LayerKind`] and
+//! [`AltitudeSource`] in `layer`, [`StructureGrid`] in `lattice`, [`CloudType`] in `cloud`)
+//! and stays reachable here.
 
 use chrono::{DateTime, SecondsFormat, Utc};
 use serde::{Deserialize, Serialize};

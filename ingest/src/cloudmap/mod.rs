@@ -55,11 +55,12 @@ impl CloudMap {
         region: crate::region::Region,
         width: u32,
         height: u32,
-        bands: &[(crate::meta::LayerKind, f64, f64)],
+        bands: &[(crate::layer::LayerKind, f64, f64)],
         valid_time: chrono::DateTime<chrono::Utc>,
         cover: impl Fn(f64, f64) -> [f64; 3] + Sync,
     ) -> CloudMap {
-        use crate::meta::{AltitudeSource, LayerMeta, SourceMeta};
+        use crate::layer::AltitudeSource;
+        use crate::meta::{LayerMeta, SourceMeta};
         let (w, h) = (width as usize, height as usize);
         let texels: Vec<[u16; 4]> = (0..w * h)
             .map(|idx| {

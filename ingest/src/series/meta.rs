@@ -7,7 +7,7 @@ use std::path::Path;
 use chrono::{DateTime, Utc};
 use serde::{Deserialize, Serialize};
 
-use crate::meta::LayerKind;
+use crate::layer::LayerKind;
 use crate::region::{check_side, Region};
 
 /// Format tag of a series sidecar.
