@@ -16,6 +16,7 @@ pub use crate::output::write_atomic;
 use crate::output::{write_set, ExtraWriter};
 /// Largest map side, shared by ingest, the loader and the renderer.
 pub use crate::region::MAX_SIDE;
+// The coverage encoding is the vocabulary's (`sample`); its old path stays.
 pub use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 use crate::structure::MapStructure;
 

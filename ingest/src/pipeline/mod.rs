@@ -10,6 +10,9 @@
 //! - `png`: the PNG writer (coverage, structure and ground images and the sidecar, one set);
 //! - `tiff`: the GeoTIFF writer ([`crate::geotiff`] does the format);
 //! - `stats`: the coverage statistics the sidecar records.
+//!
+//! The rh_cr rule and the standard atmosphere are the vocabulary's (`layer`); they stay
+//! reachable here as [`validate_rh_cr`] and [`standard_altitude_m`].
 
 use std::path::PathBuf;
 
