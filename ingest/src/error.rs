@@ -66,15 +66,32 @@ pub enum IngestError {
         what: &'static str,
         limit: u64,
     },
-    /// The process is shutting down ([`crate::output::cleanup_temps`] ran): nothing is written.
+    /// The process is shutting down (`output::cleanup_temps` ran): nothing is written.
     #[error("{}: not written: interrupted", shown(.path))]
     Interrupted { path: PathBuf },
     #[error("{}: bad CloudMap: {msg}", shown(.path))]
     BadCloudMap { path: PathBuf, msg: String },
     /// Inputs that do not make one forecast series, or a series sidecar that is not whole
-    /// ([`crate::series`]).
+    /// (`series`).
     #[error("{}: {msg}", shown(.path))]
     Series { path: PathBuf, msg: String },
+}
+
+/// A number a user or a file gave, for a one-line message: as Rust writes it for ordinary
+/// magnitudes (up to 15 digits), in exponent form beyond them (`1e308`, not 309 digits;
+/// `1e-9`).
+pub fn show_num(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-6..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// The message of a file that holds no `GRIB` marker in its first `within` bytes (one text
+/// for the reader that refuses it early, `input::read_grib`, and for the scanner).
+pub fn not_grib(within: usize) -> String {
+    format!("not a GRIB file (no 'GRIB' marker in its first {within} bytes)")
 }
 
 /// `2 GiB`, `1 MiB`, `512 bytes`.

@@ -11,18 +11,12 @@ use crate::error::{IngestError, Result};
 use crate::grib::{self, Field, MessageInfo};
 use crate::ground::GroundInputs;
 use crate::region::Region;
+pub use crate::weather::RhLevel;
 use crate::weather::WeatherInputs;
 
 /// Top of the troposphere the default all-layer ingest folds in, hPa: GFS also carries RH up
 /// to 10 hPa, where no weather cloud forms and the altitude (~30 km) would put "cirrus" in space.
 pub const DEFAULT_TOP_HPA: f64 = 100.0;
-
-/// RH on one isobaric level, in percent, NaN-free, rows north→south.
-#[derive(Debug, Clone)]
-pub struct RhLevel {
-    pub pressure_hpa: f64,
-    pub field: Field,
-}
 
 /// Which RH levels to load.
 #[derive(Debug, Clone, Copy)]
@@ -92,11 +86,7 @@ impl Forecast {
         select: LevelSelect,
         step: Option<f64>,
     ) -> Result<Forecast> {
-        let gerr = |e: grib::GribError| IngestError::Grib {
-            path: path.to_path_buf(),
-            msg: e.to_string(),
-        };
-        let mut msgs = grib::scan(bytes).map_err(gerr)?;
+        let mut msgs = grib::scan(bytes).map_err(|e| grib_error(path, e))?;
         if let Some(h) = step {
             // Fields of other steps (and accumulations whose step reads differently) are left
             // out: the step's RH, gh, winds and instantaneous fields stay.
@@ -115,78 +105,11 @@ impl Forecast {
         let mut present: Vec<f64> = rh.iter().filter_map(|m| m.pressure_hpa()).collect();
         present.sort_by(|a, b| b.total_cmp(a));
         present.dedup();
-        let wanted: Vec<&MessageInfo> = match select {
-            LevelSelect::One(p) => {
-                let m = rh
-                    .iter()
-                    .find(|m| m.pressure_hpa().is_some_and(|q| (q - p).abs() < 1e-6))
-                    .ok_or_else(|| IngestError::LevelAbsent {
-                        path: path.to_path_buf(),
-                        level: p,
-                        present: list_levels(&present),
-                    })?;
-                vec![*m]
-            }
-            LevelSelect::AllBelow(top) => {
-                let mut seen = std::collections::BTreeSet::new();
-                let v: Vec<&MessageInfo> = rh
-                    .iter()
-                    .copied()
-                    .filter(|m| m.pressure_hpa().is_some_and(|q| q >= top))
-                    .filter(|m| seen.insert(key(m.pressure_hpa().unwrap_or(0.0))))
-                    .collect();
-                if v.is_empty() {
-                    return Err(IngestError::LevelAbsent {
-                        path: path.to_path_buf(),
-                        level: top,
-                        present: format!(
-                            "{} (none at or below the {top} hPa top; pick one with --level)",
-                            list_levels(&present)
-                        ),
-                    });
-                }
-                v
-            }
-        };
+        let wanted = select_levels(path, &rh, &present, select)?;
         let first_grid = wanted[0].grid.clone();
-        let mut levels = Vec::with_capacity(wanted.len());
-        for m in &wanted {
-            if m.grid != first_grid {
-                return Err(IngestError::Grib {
-                    path: path.to_path_buf(),
-                    msg: format!(
-                        "RH levels are on different grids (message {} differs from message {})",
-                        m.index + 1,
-                        wanted[0].index + 1
-                    ),
-                });
-            }
-            let mut field = grib::decode_values(bytes, m).map_err(gerr)?;
-            check_rh_range(path, m, &field)?;
-            fill_missing(&mut field).map_err(|msg| IngestError::Grib {
-                path: path.to_path_buf(),
-                msg: format!("message {}: {msg}", m.index + 1),
-            })?;
-            levels.push(RhLevel {
-                pressure_hpa: m.pressure_hpa().unwrap_or(f64::NAN),
-                field,
-            });
-        }
-        levels.sort_by(|a, b| b.pressure_hpa.total_cmp(&a.pressure_hpa));
+        let levels = decode_levels(path, bytes, &wanted)?;
         // gh on the same grid and levels gives the layer altitudes; absent gh is not an error.
-        let mut gh = BTreeMap::new();
-        for m in msgs.iter().filter(|m| {
-            m.is_geopotential_height()
-                && m.grid == first_grid
-                && m.pressure_hpa()
-                    .is_some_and(|p| present.iter().any(|q| (q - p).abs() < 1e-6))
-        }) {
-            if let (Some(p), Ok(f)) = (m.pressure_hpa(), grib::decode_values(bytes, m)) {
-                if f.values.iter().all(|v| v.is_finite()) {
-                    gh.insert(key(p), f);
-                }
-            }
-        }
+        let gh = decode_gh(bytes, &msgs, &first_grid, &present);
         let top = present
             .iter()
             .copied()
@@ -240,6 +163,113 @@ impl Forecast {
     /// Pressures of all loaded RH levels, descending.
     pub fn pressures(&self) -> Vec<f64> {
         self.levels.iter().map(|l| l.pressure_hpa).collect()
+    }
+}
+
+/// The RH messages `select` asks for, among `rh` (levels `present`, for the message when one
+/// is absent).
+fn select_levels<'m>(
+    path: &Path,
+    rh: &[&'m MessageInfo],
+    present: &[f64],
+    select: LevelSelect,
+) -> Result<Vec<&'m MessageInfo>> {
+    let wanted: Vec<&MessageInfo> = match select {
+        LevelSelect::One(p) => {
+            let m = rh
+                .iter()
+                .find(|m| m.pressure_hpa().is_some_and(|q| (q - p).abs() < 1e-6))
+                .ok_or_else(|| IngestError::LevelAbsent {
+                    path: path.to_path_buf(),
+                    level: p,
+                    present: list_levels(present),
+                })?;
+            vec![*m]
+        }
+        LevelSelect::AllBelow(top) => {
+            let mut seen = std::collections::BTreeSet::new();
+            let v: Vec<&MessageInfo> = rh
+                .iter()
+                .copied()
+                .filter(|m| m.pressure_hpa().is_some_and(|q| q >= top))
+                .filter(|m| seen.insert(key(m.pressure_hpa().unwrap_or(0.0))))
+                .collect();
+            if v.is_empty() {
+                return Err(IngestError::LevelAbsent {
+                    path: path.to_path_buf(),
+                    level: top,
+                    present: format!(
+                        "{} (none at or below the {top} hPa top; pick one with --level)",
+                        list_levels(present)
+                    ),
+                });
+            }
+            v
+        }
+    };
+    Ok(wanted)
+}
+
+/// Decode the `wanted` RH messages (all on one grid), range-checked and gap-filled, in
+/// descending pressure.
+fn decode_levels(path: &Path, bytes: &[u8], wanted: &[&MessageInfo]) -> Result<Vec<RhLevel>> {
+    let first_grid = &wanted[0].grid;
+    let mut levels = Vec::with_capacity(wanted.len());
+    for m in wanted {
+        if &m.grid != first_grid {
+            return Err(IngestError::Grib {
+                path: path.to_path_buf(),
+                msg: format!(
+                    "RH levels are on different grids (message {} differs from message {})",
+                    m.index + 1,
+                    wanted[0].index + 1
+                ),
+            });
+        }
+        let mut field = grib::decode_values(bytes, m).map_err(|e| grib_error(path, e))?;
+        check_rh_range(path, m, &field)?;
+        fill_missing(&mut field).map_err(|msg| IngestError::Grib {
+            path: path.to_path_buf(),
+            msg: format!("message {}: {msg}", m.index + 1),
+        })?;
+        levels.push(RhLevel {
+            pressure_hpa: m.pressure_hpa().unwrap_or(f64::NAN),
+            field,
+        });
+    }
+    levels.sort_by(|a, b| b.pressure_hpa.total_cmp(&a.pressure_hpa));
+    Ok(levels)
+}
+
+/// The file's gh on `grid` at the `present` RH levels, by level; a gh field that does not
+/// decode or is not finite everywhere is left out.
+fn decode_gh(
+    bytes: &[u8],
+    msgs: &[MessageInfo],
+    grid: &Option<grib::LatLonGrid>,
+    present: &[f64],
+) -> BTreeMap<i64, Field> {
+    let mut gh = BTreeMap::new();
+    for m in msgs.iter().filter(|m| {
+        m.is_geopotential_height()
+            && &m.grid == grid
+            && m.pressure_hpa()
+                .is_some_and(|p| present.iter().any(|q| (q - p).abs() < 1e-6))
+    }) {
+        if let (Some(p), Ok(f)) = (m.pressure_hpa(), grib::decode_values(bytes, m)) {
+            if f.values.iter().all(|v| v.is_finite()) {
+                gh.insert(key(p), f);
+            }
+        }
+    }
+    gh
+}
+
+/// A GRIB error of the file at `path`.
+fn grib_error(path: &Path, e: grib::GribError) -> IngestError {
+    IngestError::Grib {
+        path: path.to_path_buf(),
+        msg: e.to_string(),
     }
 }
 

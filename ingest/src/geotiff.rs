@@ -39,7 +39,7 @@ use std::io::Write;
 
 use rayon::prelude::*;
 
-use crate::region::Region;
+use crate::region::{side_ok, Region};
 
 mod page;
 use page::Page;
@@ -224,11 +224,7 @@ pub struct GeoTiffWriter {
 impl GeoTiffWriter {
     pub fn new(spec: GeoTiffSpec) -> Result<GeoTiffWriter, GeoTiffError> {
         let (width, height) = (spec.width, spec.height);
-        if width == 0
-            || height == 0
-            || width > crate::region::MAX_SIDE
-            || height > crate::region::MAX_SIDE
-        {
+        if !(side_ok(width) && side_ok(height)) {
             return Err(GeoTiffError::BadSize { width, height });
         }
         let levels = pyramid(width, height)
@@ -515,7 +511,7 @@ fn gdal_metadata(band_names: &[String; 4], items: &[(&str, &str)]) -> String {
             xml_escape(value)
         ));
     }
-    let scale = 1.0 / crate::cloudmap::COVERAGE_FULL;
+    let scale = 1.0 / crate::sample::COVERAGE_FULL;
     for (i, name) in band_names.iter().enumerate() {
         x.push_str(&format!(
             "  <Item name=\"DESCRIPTION\" sample=\"{i}\" role=\"description\">{}</Item>\n",

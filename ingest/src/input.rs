@@ -9,7 +9,6 @@ use std::io::Read;
 use std::path::Path;
 
 use crate::error::{IngestError, Result};
-use crate::grib::GribError;
 
 /// Largest GRIB2 file read: 2 GiB. A whole GFS 0.25° forecast step is about 0.5 GiB, and one
 /// field at [`crate::grib::MAX_POINTS`] points of 32 bits is 256 MiB; a bigger file is refused
@@ -87,7 +86,7 @@ pub fn read_grib(path: &Path) -> Result<Vec<u8>> {
     if buf.len() == GRIB_MARKER_WITHIN && !buf.windows(4).any(|w| w == b"GRIB") {
         return Err(IngestError::Grib {
             path: path.to_path_buf(),
-            msg: GribError::NotGrib(GRIB_MARKER_WITHIN).to_string(),
+            msg: crate::error::not_grib(GRIB_MARKER_WITHIN),
         });
     }
     read_rest(&mut f, &mut buf, path, MAX_GRIB_BYTES, WHAT)?;

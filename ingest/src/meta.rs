@@ -1,15 +1,22 @@
 //! The CloudMap sidecar (`MAP.json`): what a CloudMap PNG covers and how it was made.
 //!
 //! The renderer and the scorer read only this and the PNG; nothing downstream re-reads GRIB.
+//!
+//! The schema alone: the vocabulary it names lives below it ([`LayerKind`] and
+//! [`AltitudeSource`] in `layer`, [`StructureGrid`] in `lattice`, [`CloudType`] in `cloud`)
+//! and stays reachable here.
 
 use chrono::{DateTime, SecondsFormat, Utc};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+use crate::cloud::CloudType;
+pub use crate::error::show_num;
 use crate::ground::{GroundField, GroundMeta};
-use crate::region::Region;
-use crate::weather::CloudType;
+pub use crate::lattice::StructureGrid;
+pub use crate::layer::{AltitudeSource, LayerKind, ALTITUDE_RANGE_M, LOW_TOP_HPA, MIDDLE_TOP_HPA};
+use crate::region::{check_side, Region};
 use std::collections::BTreeMap;
 
 /// Sidecar format tag written now; bumped when a field changes meaning or becomes required.
@@ -23,93 +30,6 @@ pub const FORMAT_V2: &str = "stratus-cloudmap/2";
 
 /// The first sidecar format, still read: no `image_id`, so the PNG is not checked against it.
 pub const FORMAT_V1: &str = "stratus-cloudmap/1";
-
-/// Layer bases and tops a sidecar may hold, metres above mean sea level: from below the
-/// lowest land (the Dead Sea shore is at −430 m) to the Kármán line. Every level a GFS file
-/// holds (up to 0.4 hPa, about 50 km) fits; a band at 10¹² m or ±10³⁰⁸ m does not.
-pub const ALTITUDE_RANGE_M: std::ops::RangeInclusive<f64> = -500.0..=100_000.0;
-
-/// The ISCCP layer boundaries by pressure (hPa): low p > 680, middle 680 ≥ p ≥ 440, high p < 440.
-pub const LOW_TOP_HPA: f64 = 680.0;
-pub const MIDDLE_TOP_HPA: f64 = 440.0;
-
-/// Cloud layer (ISCCP convention by pressure of the level).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
-#[serde(rename_all = "lowercase")]
-pub enum LayerKind {
-    /// p > 680 hPa; PNG channel R.
-    Low,
-    /// 680 ≥ p ≥ 440 hPa; PNG channel G.
-    Middle,
-    /// p < 440 hPa; PNG channel B.
-    High,
-}
-
-impl LayerKind {
-    pub const ALL: [LayerKind; 3] = [LayerKind::Low, LayerKind::Middle, LayerKind::High];
-
-    /// The layer an isobaric level belongs to.
-    pub fn of_pressure_hpa(p: f64) -> LayerKind {
-        if p > LOW_TOP_HPA {
-            LayerKind::Low
-        } else if p >= MIDDLE_TOP_HPA {
-            LayerKind::Middle
-        } else {
-            LayerKind::High
-        }
-    }
-
-    /// RGBA channel index in the CloudMap PNG (0 = R).
-    pub const fn channel(self) -> usize {
-        match self {
-            LayerKind::Low => 0,
-            LayerKind::Middle => 1,
-            LayerKind::High => 2,
-        }
-    }
-
-    /// Default critical humidity of each layer, indexed by [`LayerKind::channel`] (DESIGN
-    /// §1.4). The one definition: the CLI, the control panel and the tests read it from here.
-    pub const DEFAULT_RH_CR: [f64; 3] = [0.80, 0.65, 0.80];
-
-    /// Default critical humidity of this layer (DESIGN §1.4).
-    pub const fn default_rh_cr(self) -> f64 {
-        Self::DEFAULT_RH_CR[self.channel()]
-    }
-
-    pub const fn name(self) -> &'static str {
-        match self {
-            LayerKind::Low => "low",
-            LayerKind::Middle => "middle",
-            LayerKind::High => "high",
-        }
-    }
-}
-
-/// Where a layer's altitude band, or one pixel's base and top, came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AltitudeSource {
-    /// Geopotential height (`gh`) on the same levels, averaged over the region (a band).
-    GeopotentialHeight,
-    /// ICAO standard atmosphere (a band).
-    StandardAtmosphere,
-    /// GFS's own cloud bottom and top pressure of the layer, through the point's gh profile.
-    GfsLayer,
-    /// Where the point's RH column crosses the layer's rh_cr.
-    RhColumn,
-}
-
-impl AltitudeSource {
-    pub const fn name(self) -> &'static str {
-        match self {
-            AltitudeSource::GeopotentialHeight => "geopotential-height",
-            AltitudeSource::StandardAtmosphere => "standard-atmosphere",
-            AltitudeSource::GfsLayer => "gfs-layer",
-            AltitudeSource::RhColumn => "rh-column",
-        }
-    }
-}
 
 /// What an extra image of a version-3 map holds (encodings in [`crate::structure`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -152,167 +72,6 @@ impl ExtraRole {
 pub struct ExtraImage {
     pub role: ExtraRole,
     pub image: String,
-}
-
-/// Where the structure images' pixels lie (version 3; all five share it): `width`×`height`
-/// pixel centres on a lat/lon lattice, row 0 north, column 0 west. The structure comes from
-/// the forecast grid, so its images are stored at a resolution tied to that grid, never
-/// larger than the map ([`crate::structure::structure_grid`]); readers sample them by
-/// lat/lon: x = (lon − west) / dlon, y = (north − lat) / dlat, clamped to the outer centres.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct StructureGrid {
-    pub width: u32,
-    pub height: u32,
-    /// Latitude of row 0's pixel centres, degrees; row j is at north − j × dlat.
-    pub north: f64,
-    /// Longitude of column 0's pixel centres, degrees (the region's convention); column i is
-    /// at west + i × dlon.
-    pub west: f64,
-    pub dlat: f64,
-    pub dlon: f64,
-}
-
-impl StructureGrid {
-    /// The map's own pixels: centres half a pixel inside the region's edges.
-    pub fn of_map(region: &Region, width: u32, height: u32) -> StructureGrid {
-        let dlat = (region.north - region.south) / height.max(1) as f64;
-        let dlon = region.lon_span() / width.max(1) as f64;
-        StructureGrid {
-            width,
-            height,
-            north: region.north - 0.5 * dlat,
-            west: region.west + 0.5 * dlon,
-            dlat,
-            dlon,
-        }
-    }
-
-    /// Fractional column (centres at whole numbers) of a longitude, clamped to the outer
-    /// centres; `lon` is taken east of `region`'s west edge, as the map's pixels are.
-    pub fn x(&self, region: &Region, lon: f64) -> f64 {
-        let lon = region.west + (lon - region.west).rem_euclid(360.0);
-        ((lon - self.west) / self.dlon).clamp(0.0, (self.width.max(1) - 1) as f64)
-    }
-
-    /// Fractional row of a latitude, clamped to the outer centres.
-    pub fn y(&self, lat: f64) -> f64 {
-        ((self.north - lat) / self.dlat).clamp(0.0, (self.height.max(1) - 1) as f64)
-    }
-
-    /// Near a pole the region reaches: the row of centres nearest that pole and how far `lat`
-    /// lies from those centres toward the pole (0 at them, 1 at the pole); `None` elsewhere.
-    /// Every pixel of that row neighbours the pole, so a point sample there blends toward the
-    /// row's mean by this weight: the pole is one point with one value, whatever the longitude
-    /// it is asked at, and the sample stays continuous on the way there.
-    pub fn pole_weight(&self, region: &Region, lat: f64) -> Option<(usize, f64)> {
-        const EPS: f64 = 1e-9;
-        let last = self.north - (self.height.max(1) - 1) as f64 * self.dlat;
-        let toward = |centre: f64, pole: f64, beyond: bool| -> Option<f64> {
-            if !beyond {
-                return None;
-            }
-            let gap = (pole - centre).abs();
-            Some(if gap < EPS {
-                1.0
-            } else {
-                ((lat - centre).abs() / gap).min(1.0)
-            })
-        };
-        if region.north >= 90.0 - EPS {
-            if let Some(t) = toward(self.north, 90.0, lat >= self.north - EPS) {
-                return Some((0, t));
-            }
-        }
-        if region.south <= -90.0 + EPS {
-            if let Some(t) = toward(last, -90.0, lat <= last + EPS) {
-                return Some((self.height.max(1) as usize - 1, t));
-            }
-        }
-        None
-    }
-
-    /// A point sample `near` (bilinear between centres) blended toward the mean of `f` over
-    /// its pole row by `pole` ([`pole_weight`](Self::pole_weight)); `f` gives pixel k's value
-    /// (row-major, this lattice's width), `None` where it has none. At the pole itself (weight
-    /// 1) the row's mean alone: one value, whatever the longitude.
-    pub fn toward_pole(
-        &self,
-        pole: Option<(usize, f64)>,
-        near: Option<f64>,
-        f: impl Fn(usize) -> Option<f64>,
-    ) -> Option<f64> {
-        let Some((row, t)) = pole else {
-            return near;
-        };
-        let w = self.width as usize;
-        let (mut sum, mut n) = (0.0, 0usize);
-        for v in (row * w..(row + 1) * w).filter_map(&f) {
-            sum += v;
-            n += 1;
-        }
-        let mean = (n > 0).then(|| sum / n as f64);
-        match (near, mean) {
-            (Some(a), Some(b)) if t < 1.0 => Some(a * (1.0 - t) + b * t),
-            (a, b) if t < 0.5 => a.or(b),
-            (a, b) => b.or(a),
-        }
-    }
-
-    /// Check it against the map: each side 1..= the map's, finite positive spacings, and pixels
-    /// whose extents cover the region (so a reader never samples outside them).
-    fn validate(&self, region: &Region, map: (u32, u32)) -> Result<(), String> {
-        self.validate_as("structure_grid", region, map)
-    }
-
-    /// [`validate`](Self::validate) of the lattice the sidecar names `what`.
-    pub(crate) fn validate_as(
-        &self,
-        what: &str,
-        region: &Region,
-        map: (u32, u32),
-    ) -> Result<(), String> {
-        for (name, v, side) in [("width", self.width, map.0), ("height", self.height, map.1)] {
-            if v == 0 || v > side {
-                return Err(format!(
-                    "{what}.{name}: {v} px is outside 1..={side} (the map's {name})"
-                ));
-            }
-        }
-        for (name, v) in [("north", self.north), ("west", self.west)] {
-            if !v.is_finite() {
-                return Err(format!("{what}.{name}: {} is not a number", show_num(v)));
-            }
-        }
-        for (name, v) in [("dlat", self.dlat), ("dlon", self.dlon)] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "{what}.{name}: {} is not a positive spacing",
-                    show_num(v)
-                ));
-            }
-        }
-        let slack = 1e-6;
-        let (w, h) = (self.width as f64, self.height as f64);
-        let east = self.west + (w - 0.5) * self.dlon;
-        let south = self.north - (h - 0.5) * self.dlat;
-        let west_gap = self.west - 0.5 * self.dlon - region.west;
-        if self.north + 0.5 * self.dlat < region.north - slack
-            || south > region.south + slack
-            || west_gap > slack
-            || east < region.west + region.lon_span() - slack
-        {
-            return Err(format!(
-                "{what}: its {}x{} pixels from {}N {}E by {} x {} degrees do not cover the region",
-                self.width,
-                self.height,
-                show_num(self.north),
-                show_num(self.west),
-                show_num(self.dlat),
-                show_num(self.dlon)
-            ));
-        }
-        Ok(())
-    }
 }
 
 /// A layer's structure over the map (version 3): what the renderer needs before it reads the
@@ -434,12 +193,8 @@ impl CloudMapMeta {
     /// map must satisfy before it is written at all.
     pub fn validate_content(&self) -> Result<(), String> {
         self.region.validate().map_err(|e| format!("region: {e}"))?;
-        let side = crate::region::MAX_SIDE;
-        for (name, v) in [("width", self.width), ("height", self.height)] {
-            if v == 0 || v > side {
-                return Err(format!("{name}: {v} px is outside 1..={side}"));
-            }
-        }
+        check_side("width", self.width)?;
+        check_side("height", self.height)?;
         if self.layers.len() > 3 {
             return Err(format!(
                 "layers: {} layers; a map has at most 3",
@@ -447,97 +202,10 @@ impl CloudMapMeta {
             ));
         }
         for (i, l) in self.layers.iter().enumerate() {
-            let at = format!("layers[{i}] ({})", l.kind.name());
-            if self.layers[..i].iter().any(|o| o.kind == l.kind) {
-                return Err(format!("{at}: a second {} layer", l.kind.name()));
-            }
-            if l.channel != l.kind.channel() {
-                return Err(format!(
-                    "{at}.channel: {} but a {} layer is in channel {}",
-                    l.channel,
-                    l.kind.name(),
-                    l.kind.channel()
-                ));
-            }
-            for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
-                if !ALTITUDE_RANGE_M.contains(&v) {
-                    return Err(format!(
-                        "{at}.{name}: {} m is outside {}..={} m",
-                        show_num(v),
-                        ALTITUDE_RANGE_M.start(),
-                        ALTITUDE_RANGE_M.end()
-                    ));
-                }
-            }
-            if l.base_m >= l.top_m {
-                return Err(format!(
-                    "{at}: base_m {} m is not below top_m {} m",
-                    show_num(l.base_m),
-                    show_num(l.top_m)
-                ));
-            }
-            crate::pipeline::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
-            for (name, v) in [
-                ("mean_coverage", l.mean_coverage),
-                ("max_coverage", l.max_coverage),
-            ] {
-                if !(0.0..=1.0).contains(&v) {
-                    return Err(format!("{at}.{name}: {} is outside 0..=1", show_num(v)));
-                }
-            }
-            if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
-                return Err(format!(
-                    "{at}.levels_hpa: {} hPa is not a pressure",
-                    show_num(*p)
-                ));
-            }
-            if let Some(st) = &l.structure {
-                for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
-                    if !ALTITUDE_RANGE_M.contains(&v) {
-                        return Err(format!(
-                            "{at}.structure.{name}: {} m is outside {}..={} m",
-                            show_num(v),
-                            ALTITUDE_RANGE_M.start(),
-                            ALTITUDE_RANGE_M.end()
-                        ));
-                    }
-                }
-                let fractions = st.sources.values().chain(st.types.values());
-                if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
-                    return Err(format!(
-                        "{at}.structure: share {} is outside 0..=1",
-                        show_num(*v)
-                    ));
-                }
-            }
+            self.validate_layer(i, l)?;
         }
         if let Some(g) = &self.ground {
-            g.grid
-                .validate_as("ground.grid", &self.region, (self.width, self.height))?;
-            for (name, v) in [
-                ("height_min_m", g.height_min_m),
-                ("height_max_m", g.height_max_m),
-            ] {
-                if !ALTITUDE_RANGE_M.contains(&v) {
-                    return Err(format!(
-                        "ground.{name}: {} m is outside {}..={} m",
-                        show_num(v),
-                        ALTITUDE_RANGE_M.start(),
-                        ALTITUDE_RANGE_M.end()
-                    ));
-                }
-            }
-            if !g.fields.contains(&GroundField::Orography) {
-                return Err("ground.fields: no orography (a ground is made from it)".into());
-            }
-            if let Some((k, f)) = g
-                .fields
-                .iter()
-                .enumerate()
-                .find(|(k, f)| g.fields[..*k].contains(f))
-            {
-                return Err(format!("ground.fields[{k}]: {} listed twice", f.name()));
-            }
+            self.validate_ground(g)?;
         }
         let s = &self.source;
         for (name, v) in [
@@ -548,6 +216,108 @@ impl CloudMapMeta {
             if !v.is_finite() {
                 return Err(format!("source.{name}: {} is not a number", show_num(v)));
             }
+        }
+        Ok(())
+    }
+
+    /// [`validate_content`](Self::validate_content) of layer `i`: one layer of each kind in
+    /// its own channel, its band inside [`ALTITUDE_RANGE_M`] and ordered, its rh_cr, coverage,
+    /// levels and structure summary.
+    fn validate_layer(&self, i: usize, l: &LayerMeta) -> Result<(), String> {
+        let at = format!("layers[{i}] ({})", l.kind.name());
+        if self.layers[..i].iter().any(|o| o.kind == l.kind) {
+            return Err(format!("{at}: a second {} layer", l.kind.name()));
+        }
+        if l.channel != l.kind.channel() {
+            return Err(format!(
+                "{at}.channel: {} but a {} layer is in channel {}",
+                l.channel,
+                l.kind.name(),
+                l.kind.channel()
+            ));
+        }
+        for (name, v) in [("base_m", l.base_m), ("top_m", l.top_m)] {
+            if !ALTITUDE_RANGE_M.contains(&v) {
+                return Err(format!(
+                    "{at}.{name}: {} m is outside {}..={} m",
+                    show_num(v),
+                    ALTITUDE_RANGE_M.start(),
+                    ALTITUDE_RANGE_M.end()
+                ));
+            }
+        }
+        if l.base_m >= l.top_m {
+            return Err(format!(
+                "{at}: base_m {} m is not below top_m {} m",
+                show_num(l.base_m),
+                show_num(l.top_m)
+            ));
+        }
+        crate::layer::validate_rh_cr(l.rh_cr).map_err(|e| format!("{at}.rh_cr: {e}"))?;
+        for (name, v) in [
+            ("mean_coverage", l.mean_coverage),
+            ("max_coverage", l.max_coverage),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(format!("{at}.{name}: {} is outside 0..=1", show_num(v)));
+            }
+        }
+        if let Some(p) = l.levels_hpa.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+            return Err(format!(
+                "{at}.levels_hpa: {} hPa is not a pressure",
+                show_num(*p)
+            ));
+        }
+        if let Some(st) = &l.structure {
+            for (name, v) in [("base_min_m", st.base_min_m), ("top_max_m", st.top_max_m)] {
+                if !ALTITUDE_RANGE_M.contains(&v) {
+                    return Err(format!(
+                        "{at}.structure.{name}: {} m is outside {}..={} m",
+                        show_num(v),
+                        ALTITUDE_RANGE_M.start(),
+                        ALTITUDE_RANGE_M.end()
+                    ));
+                }
+            }
+            let fractions = st.sources.values().chain(st.types.values());
+            if let Some(v) = fractions.into_iter().find(|v| !(0.0..=1.0).contains(*v)) {
+                return Err(format!(
+                    "{at}.structure: share {} is outside 0..=1",
+                    show_num(*v)
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`validate_content`](Self::validate_content) of the ground: its lattice against the map,
+    /// its heights, and its fields (orography among them, none twice).
+    fn validate_ground(&self, g: &GroundMeta) -> Result<(), String> {
+        g.grid
+            .validate_as("ground.grid", &self.region, (self.width, self.height))?;
+        for (name, v) in [
+            ("height_min_m", g.height_min_m),
+            ("height_max_m", g.height_max_m),
+        ] {
+            if !ALTITUDE_RANGE_M.contains(&v) {
+                return Err(format!(
+                    "ground.{name}: {} m is outside {}..={} m",
+                    show_num(v),
+                    ALTITUDE_RANGE_M.start(),
+                    ALTITUDE_RANGE_M.end()
+                ));
+            }
+        }
+        if !g.fields.contains(&GroundField::Orography) {
+            return Err("ground.fields: no orography (a ground is made from it)".into());
+        }
+        if let Some((k, f)) = g
+            .fields
+            .iter()
+            .enumerate()
+            .find(|(k, f)| g.fields[..*k].contains(f))
+        {
+            return Err(format!("ground.fields[{k}]: {} listed twice", f.name()));
         }
         Ok(())
     }
@@ -672,17 +442,6 @@ pub fn parse_time(s: &str) -> Result<DateTime<Utc>, BadTime> {
             chrono::NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M").map(|n| n.and_utc())
         })
         .map_err(|_| BadTime(s.to_string()))
-}
-
-/// A number a user or a file gave, for a one-line message: as Rust writes it for ordinary
-/// magnitudes (up to 15 digits), in exponent form beyond them (`1e308`, not 309 digits;
-/// `1e-9`).
-pub fn show_num(x: f64) -> String {
-    if x != 0.0 && x.is_finite() && !(1e-6..1e15).contains(&x.abs()) {
-        format!("{x:e}")
-    } else {
-        format!("{x}")
-    }
 }
 
 /// A time as the sidecar stores it: RFC 3339, UTC, whole seconds, `Z` (`2011-01-15T12:00:00Z`).

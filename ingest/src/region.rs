@@ -40,7 +40,7 @@ impl Region {
     }
 
     pub fn validate(&self) -> Result<(), IngestError> {
-        use crate::meta::show_num;
+        use crate::error::show_num;
         let Region {
             south,
             north,
@@ -134,14 +134,32 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), IngestError> {
             .map_err(|_| IngestError::BadSize(format!("'{v}' in '{s}' is not a whole number")))
     };
     let (w, h) = (parse(w)?, parse(h)?);
-    for side in [w, h] {
-        if side == 0 || side > MAX_SIDE {
-            return Err(IngestError::BadSize(format!(
-                "each side must be 1..={MAX_SIDE} px, got {w}x{h}"
-            )));
-        }
-    }
+    check_size(w, h)?;
     Ok((w, h))
+}
+
+/// The one size rule: whether a map, an image or a page may be `v` px on a side
+/// (1..=[`MAX_SIDE`]). Every check of a size goes through it.
+pub fn side_ok(v: u32) -> bool {
+    v != 0 && v <= MAX_SIDE
+}
+
+/// [`side_ok`] for both sides of a `w`×`h` map the user asked for.
+pub fn check_size(w: u32, h: u32) -> Result<(), IngestError> {
+    if side_ok(w) && side_ok(h) {
+        return Ok(());
+    }
+    Err(IngestError::BadSize(format!(
+        "each side must be 1..={MAX_SIDE} px, got {w}x{h}"
+    )))
+}
+
+/// [`side_ok`] for a sidecar's `name` field (`width`, `height`), as a one-line message.
+pub fn check_side(name: &str, v: u32) -> Result<(), String> {
+    if side_ok(v) {
+        return Ok(());
+    }
+    Err(format!("{name}: {v} px is outside 1..={MAX_SIDE}"))
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 use chrono::{DateTime, Datelike, Timelike, Utc};
 
 use super::bits::{micro_deg, scaled_level, sm16, sm32, BitWriter};
-use super::pack::pack_simple;
+use super::pack::{pack_simple, Packed};
 use crate::grib::tables::{
     BitmapIndicator, Discipline, GridTemplate, Packing, ProductionStatus, SurfaceType, TimeUnit,
 };
@@ -105,8 +105,20 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
         n,
         "values must hold ni*nj = {n} points"
     );
+    let p = pack_simple(&f.values, f.decimal_scale, f.bits);
+    Sections {
+        discipline: f.discipline.code(),
+        s1: section1(f),
+        s3: section3(f, n),
+        s4: section4(f),
+        s5: section5(&p),
+        s6: section6(f),
+        s7: section(7, &p.data),
+    }
+}
 
-    // Section 1: identification.
+/// Section 1: identification.
+fn section1(f: &Grib2Field) -> Vec<u8> {
     let t = f.reference_time;
     let mut b = Vec::with_capacity(16);
     b.extend_from_slice(&7u16.to_be_bytes()); // 6-7 centre: NCEP
@@ -124,9 +136,11 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
     ]); // 15-19
     b.push(ProductionStatus::Research.code()); // 20 production status (these files are synthetic)
     b.push(1); // 21 type of data: forecast
-    let s1 = section(1, &b);
+    section(1, &b)
+}
 
-    // Section 3: grid definition, template 3.0.
+/// Section 3: grid definition, template 3.0, for `n` points.
+fn section3(f: &Grib2Field, n: u64) -> Vec<u8> {
     let mut b = Vec::with_capacity(67);
     b.push(0); // 6 source: template
     b.extend_from_slice(&(n as u32).to_be_bytes()); // 7-10 number of points
@@ -154,8 +168,11 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
     b.push(0); // 72 scanning mode: +i, -j, rows
     let s3 = section(3, &b);
     debug_assert_eq!(s3.len(), 72);
+    s3
+}
 
-    // Section 4: product definition, template 4.0.
+/// Section 4: product definition, template 4.0.
+fn section4(f: &Grib2Field) -> Vec<u8> {
     let mut b = Vec::with_capacity(29);
     b.extend_from_slice(&0u16.to_be_bytes()); // 6-7 no coordinate values
     b.extend_from_slice(&0u16.to_be_bytes()); // 8-9 template 4.0
@@ -180,9 +197,11 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
     b.extend_from_slice(&u32::MAX.to_be_bytes()); // 31-34
     let s4 = section(4, &b);
     debug_assert_eq!(s4.len(), 34);
+    s4
+}
 
-    // Section 5: data representation, template 5.0.
-    let p = pack_simple(&f.values, f.decimal_scale, f.bits);
+/// Section 5: data representation, template 5.0, of the packed values `p`.
+fn section5(p: &Packed) -> Vec<u8> {
     let mut b = Vec::with_capacity(16);
     b.extend_from_slice(&p.count.to_be_bytes()); // 6-9 values packed
     b.extend_from_slice(&Packing::Simple.code().to_be_bytes()); // 10-11 template 5.0
@@ -193,9 +212,12 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
     b.push(0); // 21 original values: floating point
     let s5 = section(5, &b);
     debug_assert_eq!(s5.len(), 21);
+    s5
+}
 
-    // Section 6: bit-map, only when something is missing.
-    let s6 = if f.values.iter().any(|v| v.is_nan()) {
+/// Section 6: bit-map, only when something is missing.
+fn section6(f: &Grib2Field) -> Vec<u8> {
+    if f.values.iter().any(|v| v.is_nan()) {
         let mut w = BitWriter::new();
         for v in &f.values {
             w.put(u32::from(!v.is_nan()), 1);
@@ -205,17 +227,6 @@ pub fn encode_sections(f: &Grib2Field) -> Sections {
         section(6, &b)
     } else {
         section(6, &[BitmapIndicator::None.code()])
-    };
-
-    let s7 = section(7, &p.data);
-    Sections {
-        discipline: f.discipline.code(),
-        s1,
-        s3,
-        s4,
-        s5,
-        s6,
-        s7,
     }
 }
 

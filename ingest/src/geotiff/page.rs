@@ -15,6 +15,8 @@
 
 use rayon::prelude::*;
 
+use crate::region::side_ok;
+
 use super::{
     xml_escape, Entry, GeoRef, GeoTiffError, Ifd, COMPRESSION, EXTRA_SAMPLES, GDAL_METADATA,
     IMAGE_LENGTH, IMAGE_WIDTH, NEW_SUBFILE_TYPE, PHOTOMETRIC, PLANAR_CONFIGURATION, PREDICTOR,
@@ -65,11 +67,7 @@ pub(super) struct Page {
 impl Page {
     pub(super) fn new(spec: PageSpec) -> Result<Page, GeoTiffError> {
         let (width, height) = (spec.width, spec.height);
-        if width == 0
-            || height == 0
-            || width > crate::region::MAX_SIDE
-            || height > crate::region::MAX_SIDE
-        {
+        if !(side_ok(width) && side_ok(height)) {
             return Err(GeoTiffError::BadSize { width, height });
         }
         // A tile row of every sample must stay addressable, and TIFF counts samples in a SHORT.

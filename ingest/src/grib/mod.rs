@@ -34,7 +34,7 @@ pub const MAX_POINTS: u64 = 64 * 1024 * 1024;
 pub enum GribError {
     #[error("empty file")]
     Empty,
-    #[error("not a GRIB file (no 'GRIB' marker in its first {0} bytes)")]
+    #[error("{}", crate::error::not_grib(*.0))]
     NotGrib(usize),
     #[error("message {index} at byte {offset} is GRIB edition 1, which stratus does not read; convert it with ecCodes: grib_set -s edition=2 IN OUT")]
     Edition1 { index: usize, offset: usize },

@@ -144,22 +144,7 @@ fn parse_message(
     let mut last = 0u8;
     let end = msg.len() - 4;
     while p < end {
-        if end - p < 5 {
-            return Err(corrupt(format!("{} stray bytes before '7777'", end - p)));
-        }
-        let len = u32::from_be_bytes([msg[p], msg[p + 1], msg[p + 2], msg[p + 3]]) as usize;
-        let num = msg[p + 4];
-        if len < 5 || len > end - p {
-            return Err(corrupt(format!(
-                "section {num} at message byte {p} declares {len} bytes; {} remain",
-                end - p
-            )));
-        }
-        // Sections come in order; after a data section 7 a new field may restart at 2, 3 or 4.
-        let in_order = (1..=7).contains(&num) && (num > last || (last == 7 && num >= 2));
-        if !in_order || (last == 0 && num != 1) {
-            return Err(corrupt(format!("section {num} follows section {last}")));
-        }
+        let (len, num) = section_at(msg, p, end, last, &corrupt)?;
         let s = Sec {
             b: &msg[p..p + len],
             index,
@@ -222,6 +207,34 @@ fn parse_message(
         )));
     }
     Ok(fields)
+}
+
+/// The section at message byte `p` (before `end`, where '7777' starts): its length and
+/// number, checked against the bytes left and against the section before it (`last`).
+fn section_at(
+    msg: &[u8],
+    p: usize,
+    end: usize,
+    last: u8,
+    corrupt: &dyn Fn(String) -> GribError,
+) -> Result<(usize, u8), GribError> {
+    if end - p < 5 {
+        return Err(corrupt(format!("{} stray bytes before '7777'", end - p)));
+    }
+    let len = u32::from_be_bytes([msg[p], msg[p + 1], msg[p + 2], msg[p + 3]]) as usize;
+    let num = msg[p + 4];
+    if len < 5 || len > end - p {
+        return Err(corrupt(format!(
+            "section {num} at message byte {p} declares {len} bytes; {} remain",
+            end - p
+        )));
+    }
+    // Sections come in order; after a data section 7 a new field may restart at 2, 3 or 4.
+    let in_order = (1..=7).contains(&num) && (num > last || (last == 7 && num >= 2));
+    if !in_order || (last == 0 && num != 1) {
+        return Err(corrupt(format!("section {num} follows section {last}")));
+    }
+    Ok((len, num))
 }
 
 fn reference_time(s: &Sec) -> Result<Option<DateTime<Utc>>, GribError> {

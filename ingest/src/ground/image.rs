@@ -8,9 +8,9 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::meta::StructureGrid;
+use crate::lattice::StructureGrid;
 use crate::region::Region;
-use crate::structure::{altitude_to_sample, sample_to_altitude};
+use crate::sample::{altitude_to_sample, sample_to_altitude};
 
 use super::{Ground, GroundField};
 

@@ -24,7 +24,7 @@
 //! coordinate is `uv × scale + offset` with [`Ground::texture_transform`].
 //!
 //! It is the structure images' lattice (a few texels per forecast grid cell, every grid point
-//! a texel centre; [`crate::structure::structure_grid`]): 2.5° terrain is smooth, so a texel
+//! a texel centre; [`crate::lattice::structure_grid`]): 2.5° terrain is smooth, so a texel
 //! every 0.36° holds it, and files stay kilobytes.
 
 pub mod image;
@@ -33,8 +33,7 @@ pub mod resample;
 
 use serde::{Deserialize, Serialize};
 
-use crate::cloudmap::CloudMap;
-use crate::meta::StructureGrid;
+use crate::lattice::StructureGrid;
 use crate::region::Region;
 
 pub use inputs::{default_albedo, GroundInputs};
@@ -328,41 +327,6 @@ impl ProbeGround {
         cwat_kg_m2: None,
         ground_fields: Vec::new(),
     };
-}
-
-impl CloudMap {
-    /// What the ground holds at (`lat`, `lon`) for a probe.
-    pub fn probe_ground(&self, lat: f64, lon: f64) -> ProbeGround {
-        let Some((g, s)) = self.ground().and_then(|g| Some((g, g.at(lat, lon)?))) else {
-            return ProbeGround::NONE;
-        };
-        ProbeGround {
-            ground_m: s.height_m,
-            ground_source: GroundSource::Orography,
-            land: Some(s.land),
-            ice: Some(s.ice),
-            snow_kg_m2: Some(s.snow_kg_m2),
-            snow_cover: Some(s.snow_cover),
-            albedo: Some(s.albedo),
-            cwat_kg_m2: s.cwat_kg_m2,
-            ground_fields: g.fields.clone(),
-        }
-    }
-
-    /// The map's ground, when it has one (maps ingested from a file with orography).
-    pub fn ground(&self) -> Option<&Ground> {
-        self.ground.as_ref()
-    }
-
-    /// The terrain height at (`lat`, `lon`), m above mean sea level, and where it came from:
-    /// the ground grid inside the map's region, sea level (0 m) where the map has no ground or
-    /// the point is outside its region.
-    pub fn ground_height_m(&self, lat: f64, lon: f64) -> (f64, GroundSource) {
-        match self.ground().and_then(|g| g.at(lat, lon)) {
-            Some(s) => (s.height_m, GroundSource::Orography),
-            None => (0.0, GroundSource::None),
-        }
-    }
 }
 
 #[cfg(test)]

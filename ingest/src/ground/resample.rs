@@ -6,9 +6,8 @@
 //! above the highest grid point, and fractions stay in 0..1. Water (land fraction below ½) is
 //! then never below sea level.
 
-use crate::meta::StructureGrid;
+use crate::lattice::{Placement, StructureGrid};
 use crate::spline::{Interp, Tap, WRAP_PAD};
-use crate::weather::pixels::Placement;
 
 use super::inputs::GroundInputs;
 use super::Ground;
@@ -158,7 +157,7 @@ mod tests {
             dj: 1.0,
             wrap: false,
         };
-        let lattice = crate::structure::structure_grid((110, 50), &region, (45.0, 0.0), (1.0, 1.0));
+        let lattice = crate::lattice::structure_grid((110, 50), &region, (45.0, 0.0), (1.0, 1.0));
         let g = resample(&inputs, &at, lattice, Interp::Spline);
         let (lo, hi) = g
             .height_m

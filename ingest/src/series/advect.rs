@@ -12,11 +12,12 @@
 use chrono::Duration;
 use rayon::prelude::*;
 
-use crate::cloudmap::{coverage_to_sample, CloudMap, COVERAGE_FULL};
+use crate::cloudmap::CloudMap;
 use crate::error::{IngestError, Result};
-use crate::meta::StructureGrid;
+use crate::lattice::StructureGrid;
 use crate::region::Region;
-use crate::structure::{sample_to_wind, MapStructure};
+use crate::sample::{coverage_to_sample, sample_to_wind, COVERAGE_FULL};
+use crate::structure::MapStructure;
 
 /// Mean Earth radius, m.
 pub const EARTH_RADIUS_M: f64 = 6_371_000.0;

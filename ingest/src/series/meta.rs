@@ -7,8 +7,8 @@ use std::path::Path;
 use chrono::{DateTime, Utc};
 use serde::{Deserialize, Serialize};
 
-use crate::meta::LayerKind;
-use crate::region::{Region, MAX_SIDE};
+use crate::layer::LayerKind;
+use crate::region::{check_side, Region};
 
 /// Format tag of a series sidecar.
 pub const SERIES_FORMAT: &str = "stratus-cloudmap-series/1";
@@ -108,11 +108,8 @@ impl SeriesMeta {
             ));
         }
         self.region.validate().map_err(|e| format!("region: {e}"))?;
-        for (name, v) in [("width", self.width), ("height", self.height)] {
-            if v == 0 || v > MAX_SIDE {
-                return Err(format!("{name}: {v} px is outside 1..={MAX_SIDE}"));
-            }
-        }
+        check_side("width", self.width)?;
+        check_side("height", self.height)?;
         if self.layers.is_empty() {
             return Err("layers: none".into());
         }

@@ -6,12 +6,13 @@ use std::path::Path;
 
 use crate::cloudmap::CloudMap;
 use crate::error::Result;
-use crate::structure::{sample_to_wind, MapStructure};
+use crate::sample::sample_to_wind;
+use crate::structure::MapStructure;
 
 /// Per layer (low, middle, high): (east, north) m/s.
 pub type LayerWinds = [[f64; 2]; 3];
 
-/// The largest wind the wind images can hold (m/s, [`crate::structure::wind_to_sample`]'s
+/// The largest wind the wind images can hold (m/s, [`crate::sample::wind_to_sample`]'s
 /// range): a recorded mean beyond it was not made from them.
 pub const MAX_MEAN_WIND: f64 = 327.68;
 

@@ -4,44 +4,10 @@
 //! layer's rh_cr between levels), the layer's band. Pressures become altitudes through the
 //! point's geopotential height profile, interpolated in log-pressure.
 
-use crate::forecast::RhLevel;
-use crate::meta::{AltitudeSource, LayerKind, ALTITUDE_RANGE_M};
-use crate::pipeline::standard_altitude_m;
+use crate::layer::{standard_altitude_m, LayerKind, PointSource, ALTITUDE_RANGE_M};
 
-use super::inputs::WeatherInputs;
+use super::inputs::{RhLevel, WeatherInputs};
 use super::kind::{classify, layer_span_hpa, ColumnFacts};
-
-/// Where one grid point's (or pixel's) base and top came from; its code is what the type
-/// image's alpha channel holds, two bits per layer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-#[repr(u8)]
-pub enum PointSource {
-    GfsLayer = 1,
-    RhColumn = 2,
-    /// The layer's band (its sidecar `altitude_source` says whether gh or the standard
-    /// atmosphere made it).
-    Band = 3,
-}
-
-impl PointSource {
-    pub fn from_code(c: u8) -> Option<PointSource> {
-        match c {
-            1 => Some(PointSource::GfsLayer),
-            2 => Some(PointSource::RhColumn),
-            3 => Some(PointSource::Band),
-            _ => None,
-        }
-    }
-
-    /// As the sidecar and the probe name it; a band is named by what made it.
-    pub fn altitude_source(self, band: AltitudeSource) -> AltitudeSource {
-        match self {
-            PointSource::GfsLayer => AltitudeSource::GfsLayer,
-            PointSource::RhColumn => AltitudeSource::RhColumn,
-            PointSource::Band => band,
-        }
-    }
-}
 
 /// Thinnest cloud a base/top pair may describe, m (one model level is thicker; this only
 /// keeps base < top after clamping to the ground).

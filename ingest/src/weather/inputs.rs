@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
-use crate::grib::{self, LatLonGrid, MessageInfo, SurfaceType};
-use crate::meta::LayerKind;
+use crate::grib::{self, Field, LatLonGrid, MessageInfo, SurfaceType};
+use crate::layer::LayerKind;
 
 use super::kind::{layer_span_hpa, optical_thickness, ICE_BELOW_K};
 
@@ -16,6 +16,13 @@ const G: f64 = 9.80665;
 
 /// A field on the RH grid, row-major north→south; NaN where missing (bit-map).
 pub type Grid32 = Vec<f32>;
+
+/// RH on one isobaric level, in percent, NaN-free, rows north→south.
+#[derive(Debug, Clone)]
+pub struct RhLevel {
+    pub pressure_hpa: f64,
+    pub field: Field,
+}
 
 /// What the file holds besides RH, on the RH grid.
 #[derive(Debug, Clone, Default)]
@@ -51,91 +58,80 @@ impl WeatherInputs {
         grid: &Option<LatLonGrid>,
         top_hpa: f64,
     ) -> WeatherInputs {
+        let r = Reader {
+            path,
+            bytes,
+            msgs,
+            grid,
+        };
         let mut w = WeatherInputs::default();
-        let decode = |m: &MessageInfo| -> Option<Grid32> {
-            if &m.grid != grid {
-                return None;
-            }
-            match grib::decode_values(bytes, m) {
-                Ok(f) => Some(f.values.iter().map(|&v| v as f32).collect()),
-                Err(e) => {
-                    tracing::warn!("{}: {} skipped: {e}", path.display(), m.short_name());
-                    None
-                }
-            }
-        };
-        let find = |param: &[(u8, u8, u8)], level: SurfaceType| {
-            msgs.iter()
-                .find(|m| param.contains(&m.parameter()) && m.level_type == Some(level))
-        };
-        let get = |param: &[(u8, u8, u8)], level: SurfaceType| find(param, level).and_then(decode);
-        const PRES: &[(u8, u8, u8)] = &[(0, 3, 0)];
+        w.load_surface(&r);
+        w.load_gh(&r, top_hpa);
+        let n = grid.as_ref().map_or(0, |g| g.ni * g.nj);
+        w.load_winds(&r, top_hpa, n);
+        w.load_condensate(&r, top_hpa, n);
+        w
+    }
+
+    /// The single-level fields: GFS's cloud layer and convective cloud pressures, convective
+    /// precipitation, CAPE, lifted index and orography.
+    fn load_surface(&mut self, r: &Reader) {
         use SurfaceType as S;
-        // Pressures are in Pa in the file.
-        let hpa = |g: Grid32| -> Grid32 { g.into_iter().map(|v| v / 100.0).collect() };
-        let pair = |b: SurfaceType, t: SurfaceType| match (get(PRES, b), get(PRES, t)) {
-            (Some(b), Some(t)) => Some((hpa(b), hpa(t))),
-            _ => None,
-        };
-        w.cloud_hpa = [
-            pair(S::LowCloudBottom, S::LowCloudTop),
-            pair(S::MiddleCloudBottom, S::MiddleCloudTop),
-            pair(S::HighCloudBottom, S::HighCloudTop),
+        self.cloud_hpa = [
+            r.pair(S::LowCloudBottom, S::LowCloudTop),
+            r.pair(S::MiddleCloudBottom, S::MiddleCloudTop),
+            r.pair(S::HighCloudBottom, S::HighCloudTop),
         ];
-        if w.cloud_hpa.iter().any(Option::is_some) {
-            w.found.push("cloud-layer-pressures");
+        if self.cloud_hpa.iter().any(Option::is_some) {
+            self.found.push("cloud-layer-pressures");
         }
-        w.convective_hpa = pair(S::ConvectiveCloudBottom, S::ConvectiveCloudTop);
-        if w.convective_hpa.is_some() {
-            w.found.push("convective-cloud-pressures");
+        self.convective_hpa = r.pair(S::ConvectiveCloudBottom, S::ConvectiveCloudTop);
+        if self.convective_hpa.is_some() {
+            self.found.push("convective-cloud-pressures");
         }
         // WMO 0.1.37 or NCEP's local 0.1.196, kg m⁻² s⁻¹ → mm/h.
-        w.conv_precip_mm_h = get(&[(0, 1, 37), (0, 1, 196)], S::Surface)
+        self.conv_precip_mm_h = r
+            .get(&[(0, 1, 37), (0, 1, 196)], S::Surface)
             .map(|g| g.into_iter().map(|v| v * 3600.0).collect());
-        if w.conv_precip_mm_h.is_some() {
-            w.found.push("convective-precipitation-rate");
+        if self.conv_precip_mm_h.is_some() {
+            self.found.push("convective-precipitation-rate");
         }
-        w.cape = get(&[(0, 7, 6)], S::Surface);
-        if w.cape.is_some() {
-            w.found.push("cape");
+        self.cape = r.get(&[(0, 7, 6)], S::Surface);
+        if self.cape.is_some() {
+            self.found.push("cape");
         }
         // Surface lifted index (WMO 0.7.10, NCEP 0.7.192), else the best four-layer one.
-        w.lifted_index = get(&[(0, 7, 10), (0, 7, 192)], S::Surface)
-            .or_else(|| get(&[(0, 7, 11), (0, 7, 193)], S::Surface));
-        if w.lifted_index.is_some() {
-            w.found.push("lifted-index");
+        self.lifted_index = r
+            .get(&[(0, 7, 10), (0, 7, 192)], S::Surface)
+            .or_else(|| r.get(&[(0, 7, 11), (0, 7, 193)], S::Surface));
+        if self.lifted_index.is_some() {
+            self.found.push("lifted-index");
         }
-        w.surface_gh = get(&[(0, 3, 5)], S::Surface);
-        if w.surface_gh.is_some() {
-            w.found.push("orography");
+        self.surface_gh = r.get(&[(0, 3, 5)], S::Surface);
+        if self.surface_gh.is_some() {
+            self.found.push("orography");
         }
+    }
 
-        // Isobaric stacks up to `top_hpa`, one level at a time.
-        let iso_from = |param: (u8, u8, u8), top: f64| -> Vec<(f64, &MessageInfo)> {
-            let mut v: Vec<(f64, &MessageInfo)> = msgs
-                .iter()
-                .filter(|m| m.parameter() == param)
-                .filter_map(|m| Some((m.pressure_hpa()?, m)))
-                .filter(|(p, _)| *p >= top - 1e-6)
-                .collect();
-            v.sort_by(|a, b| b.0.total_cmp(&a.0));
-            v.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-6);
-            v
-        };
-        let iso = |param: (u8, u8, u8)| iso_from(param, top_hpa);
+    /// Geopotential height on the isobaric levels.
+    fn load_gh(&mut self, r: &Reader, top_hpa: f64) {
         // gh a little above the top too: GFS puts tropical high-cloud tops near 80 hPa.
-        w.gh = iso_from((0, 3, 5), top_hpa.min(50.0))
+        self.gh = r
+            .iso_from((0, 3, 5), top_hpa.min(50.0))
             .into_iter()
-            .filter_map(|(p, m)| Some((p, decode(m)?)))
+            .filter_map(|(p, m)| Some((p, r.decode(m)?)))
             .filter(|(_, g)| g.iter().all(|v| v.is_finite()))
             .collect();
-        if !w.gh.is_empty() {
-            w.found.push("geopotential-height");
+        if !self.gh.is_empty() {
+            self.found.push("geopotential-height");
         }
-        let n = grid.as_ref().map_or(0, |g| g.ni * g.nj);
+    }
+
+    /// Each layer's mass-weighted mean wind over `n` grid points.
+    fn load_winds(&mut self, r: &Reader, top_hpa: f64, n: usize) {
         // Winds: Σ u·Δp / Σ Δp per layer.
-        let us = iso((0, 2, 2));
-        let vs = iso((0, 2, 3));
+        let us = r.iso_from((0, 2, 2), top_hpa);
+        let vs = r.iso_from((0, 2, 3), top_hpa);
         let levels: Vec<f64> = us.iter().map(|x| x.0).collect();
         let weights = layer_weights(&levels);
         let mut acc: [Option<WindSum>; 3] = Default::default();
@@ -143,7 +139,7 @@ impl WeatherInputs {
             let Some(vm) = vs.iter().find(|(q, _)| (q - p).abs() < 1e-6).map(|x| x.1) else {
                 continue;
             };
-            let (Some(u), Some(v)) = (decode(um), decode(vm)) else {
+            let (Some(u), Some(v)) = (r.decode(um), r.decode(vm)) else {
                 continue;
             };
             let a = acc[kind.channel()].get_or_insert_with(|| (vec![0.0; n], vec![0.0; n], 0.0));
@@ -153,27 +149,31 @@ impl WeatherInputs {
             }
             a.2 += dp;
         }
-        w.wind = acc.map(|a| {
+        self.wind = acc.map(|a| {
             a.filter(|a| a.2 > 0.0).map(|(u, v, sum)| {
                 let f = |x: Vec<f64>| x.into_iter().map(|s| (s / sum) as f32).collect();
                 (f(u), f(v))
             })
         });
-        if w.wind.iter().any(Option::is_some) {
-            w.found.push("winds");
+        if self.wind.iter().any(Option::is_some) {
+            self.found.push("winds");
         }
+    }
+
+    /// Each layer's optical thickness over `n` grid points.
+    fn load_condensate(&mut self, r: &Reader, top_hpa: f64, n: usize) {
         // Condensate: τ = Σ optical thickness of clwmr·Δp/g, phase from t on the level.
-        let cw = iso((0, 1, 22));
-        let ts = iso((0, 0, 0));
+        let cw = r.iso_from((0, 1, 22), top_hpa);
+        let ts = r.iso_from((0, 0, 0), top_hpa);
         let levels: Vec<f64> = cw.iter().map(|x| x.0).collect();
         let weights = layer_weights(&levels);
         let mut tau: [Option<Vec<f64>>; 3] = Default::default();
         for ((p, cm), (kind, dp)) in cw.iter().zip(&weights) {
-            let Some(q) = decode(cm) else { continue };
+            let Some(q) = r.decode(cm) else { continue };
             let t = ts
                 .iter()
                 .find(|(tp, _)| (tp - p).abs() < 1e-6)
-                .and_then(|x| decode(x.1));
+                .and_then(|x| r.decode(x.1));
             let a = tau[kind.channel()].get_or_insert_with(|| vec![0.0; n]);
             for k in 0..n.min(q.len()) {
                 let path = (q[k] as f64).max(0.0) * dp * 100.0 / G;
@@ -187,11 +187,66 @@ impl WeatherInputs {
                 }
             }
         }
-        w.tau = tau.map(|t| t.map(|t| t.into_iter().map(|v| v as f32).collect()));
-        if w.tau.iter().any(Option::is_some) {
-            w.found.push("cloud-mixing-ratio");
+        self.tau = tau.map(|t| t.map(|t| t.into_iter().map(|v| v as f32).collect()));
+        if self.tau.iter().any(Option::is_some) {
+            self.found.push("cloud-mixing-ratio");
         }
-        w
+    }
+}
+
+/// The file a [`WeatherInputs`] is read from: its messages and the RH grid they must share.
+struct Reader<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    msgs: &'a [MessageInfo],
+    grid: &'a Option<LatLonGrid>,
+}
+
+impl<'a> Reader<'a> {
+    /// A message's values as f32, if it is on the RH grid and decodes (else skipped, logged).
+    fn decode(&self, m: &MessageInfo) -> Option<Grid32> {
+        if &m.grid != self.grid {
+            return None;
+        }
+        match grib::decode_values(self.bytes, m) {
+            Ok(f) => Some(f.values.iter().map(|&v| v as f32).collect()),
+            Err(e) => {
+                tracing::warn!("{}: {} skipped: {e}", self.path.display(), m.short_name());
+                None
+            }
+        }
+    }
+
+    /// The first message of one of `param` on `level`, decoded.
+    fn get(&self, param: &[(u8, u8, u8)], level: SurfaceType) -> Option<Grid32> {
+        self.msgs
+            .iter()
+            .find(|m| param.contains(&m.parameter()) && m.level_type == Some(level))
+            .and_then(|m| self.decode(m))
+    }
+
+    /// Bottom and top pressure (hPa; Pa in the file) of a cloud, when both are there.
+    fn pair(&self, b: SurfaceType, t: SurfaceType) -> Option<(Grid32, Grid32)> {
+        const PRES: &[(u8, u8, u8)] = &[(0, 3, 0)];
+        let hpa = |g: Grid32| -> Grid32 { g.into_iter().map(|v| v / 100.0).collect() };
+        match (self.get(PRES, b), self.get(PRES, t)) {
+            (Some(b), Some(t)) => Some((hpa(b), hpa(t))),
+            _ => None,
+        }
+    }
+
+    /// Isobaric stack of `param` up to `top` hPa, one message a level, descending pressure.
+    fn iso_from(&self, param: (u8, u8, u8), top: f64) -> Vec<(f64, &'a MessageInfo)> {
+        let mut v: Vec<(f64, &MessageInfo)> = self
+            .msgs
+            .iter()
+            .filter(|m| m.parameter() == param)
+            .filter_map(|m| Some((m.pressure_hpa()?, m)))
+            .filter(|(p, _)| *p >= top - 1e-6)
+            .collect();
+        v.sort_by(|a, b| b.0.total_cmp(&a.0));
+        v.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-6);
+        v
     }
 }
 

@@ -5,16 +5,17 @@
 //! time. The sidecar's per-layer summary is tallied over the map's cloudy pixels as a reader
 //! sees them through the structure images ([`PixelSampler::tally`]).
 
-use crate::meta::{AltitudeSource, ExtraRole, LayerStructure, StructureGrid};
-use crate::region::Region;
-use crate::structure::{
+use crate::cloud::CloudType;
+use crate::lattice::{Placement, StructureGrid};
+use crate::layer::{AltitudeSource, PointSource};
+use crate::meta::{ExtraRole, LayerStructure};
+use crate::sample::{
     altitude_to_sample, pack_sources, sample_to_altitude, sample_to_wind, unpack_source,
-    wind_to_sample, MapStructure, StructureBand,
+    wind_to_sample,
 };
-
-use super::grid::GridStructure;
-use super::inputs::Grid32;
-use super::CloudType;
+use crate::structure::{MapStructure, StructureBand};
+use crate::weather::inputs::Grid32;
+use crate::weather::GridStructure;
 
 /// Bilinear taps of one axis at a pixel: (lower index, upper index, weight of upper, nearest).
 #[derive(Debug, Clone, Copy)]
@@ -108,7 +109,7 @@ impl StructureStats {
         let share = |k: u64| if n == 0 { 0.0 } else { k as f64 / n as f64 };
         let mut sources = std::collections::BTreeMap::new();
         for (code, &k) in self.sources[c].iter().enumerate() {
-            if let (true, Some(s)) = (k > 0, super::PointSource::from_code(code as u8)) {
+            if let (true, Some(s)) = (k > 0, PointSource::from_code(code as u8)) {
                 *sources.entry(s.altitude_source(band_source)).or_insert(0.0) += share(k);
             }
         }
@@ -149,19 +150,6 @@ impl StructureStats {
             self.top_max[c] = self.top_max[c].max(o.top_max[c]);
         }
     }
-}
-
-/// Where the map lies on the forecast grid: its region and size, the grid's north-west point
-/// (`north`, `west`) and spacing (`di`, `dj`), and whether the grid wraps around the globe.
-#[derive(Debug, Clone, Copy)]
-pub struct Placement {
-    pub region: Region,
-    pub map_size: (usize, usize),
-    pub north: f64,
-    pub west: f64,
-    pub di: f64,
-    pub dj: f64,
-    pub wrap: bool,
 }
 
 impl PixelSampler {

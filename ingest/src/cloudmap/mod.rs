@@ -1,4 +1,5 @@
-//! The CloudMap: per-pixel low/middle/high/total coverage, its 16-bit PNG and sidecar I/O.
+//! The CloudMap: per-pixel low/middle/high/total coverage, its 16-bit PNG and sidecar I/O,
+//! with its structure images and ground; the point probe over it is in [`probe`].
 //!
 //! A map's PNG and sidecar are written as one pair ([`crate::output::write_pair`]): a failed
 //! or interrupted write leaves the previous pair, and a reader never trusts a PNG that is not
@@ -15,15 +16,11 @@ pub use crate::output::write_atomic;
 use crate::output::{write_set, ExtraWriter};
 /// Largest map side, shared by ingest, the loader and the renderer.
 pub use crate::region::MAX_SIDE;
+// The coverage encoding is the vocabulary's (`sample`); its old path stays.
+pub use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 use crate::structure::MapStructure;
 
-/// The PNG sample value of full coverage: coverage c in 0..1 is stored as round(c × 65535).
-pub const COVERAGE_FULL: f64 = 65535.0;
-
-/// Coverage (clamped to 0..1) as its 16-bit PNG sample.
-pub fn coverage_to_sample(c: f64) -> u16 {
-    (c.clamp(0.0, 1.0) * COVERAGE_FULL).round() as u16
-}
+pub mod probe;
 
 /// Coverage in 0..1 for R (low), G (middle), B (high), A (= max of the three).
 #[derive(Debug, Clone)]
@@ -59,11 +56,12 @@ impl CloudMap {
         region: crate::region::Region,
         width: u32,
         height: u32,
-        bands: &[(crate::meta::LayerKind, f64, f64)],
+        bands: &[(crate::layer::LayerKind, f64, f64)],
         valid_time: chrono::DateTime<chrono::Utc>,
         cover: impl Fn(f64, f64) -> [f64; 3] + Sync,
     ) -> CloudMap {
-        use crate::meta::{AltitudeSource, LayerMeta, SourceMeta};
+        use crate::layer::AltitudeSource;
+        use crate::meta::{LayerMeta, SourceMeta};
         let (w, h) = (width as usize, height as usize);
         let texels: Vec<[u16; 4]> = (0..w * h)
             .map(|idx| {
