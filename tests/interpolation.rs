@@ -24,7 +24,11 @@ fn s(p: &Path) -> &str {
 fn poland(dir: &Path) -> PathBuf {
     let files: Vec<PathBuf> = ["f000", "f006", "f012"]
         .iter()
-        .map(|f| sample(&format!("gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.{f}")))
+        .map(|f| {
+            sample(&format!(
+                "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.{f}"
+            ))
+        })
         .collect();
     let out = dir.join("pl.png");
     let mut args = vec!["ingest"];
@@ -38,7 +42,14 @@ fn poland(dir: &Path) -> PathBuf {
 
 /// `verify-interpolation --json`, parsed, with the scores printed for the record.
 fn verify(map: &Path, hold: &str) -> Value {
-    let o = stratus(&["verify-interpolation", "--map", s(map), "--hold", hold, "--json"]);
+    let o = stratus(&[
+        "verify-interpolation",
+        "--map",
+        s(map),
+        "--hold",
+        hold,
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     println!("{}: {v}", map.display());
@@ -66,7 +77,10 @@ fn on_the_poland_series_motion_is_nowhere_worse_and_better_where_clouds_moved() 
     // The middle layer's clouds travel over these 12 h (the wind beats the cross-fade there
     // by 0.12): so must the motion.
     let mid = &layers[1];
-    assert!(score(mid, "motion") > score(mid, "crossfade") + 0.05, "{mid}");
+    assert!(
+        score(mid, "motion") > score(mid, "crossfade") + 0.05,
+        "{mid}"
+    );
 }
 
 /// Map `m` carried `px` pixels east (the region spans all longitudes, so what leaves in the
@@ -102,8 +116,8 @@ fn carried_series(real: &Path, px: usize) -> PathBuf {
             step.meta.source.valid_time = Some(valid);
             let png = dir.join(format!("moved-{k}.png"));
             step.save(&png).unwrap();
-            let saved = stratus_ingest::cloudmap::load_meta(&dir.join(format!("moved-{k}.json")))
-                .unwrap();
+            let saved =
+                stratus_ingest::cloudmap::load_meta(&dir.join(format!("moved-{k}.json"))).unwrap();
             let image = |r| saved.extra(r).unwrap().image.clone();
             SeriesStep {
                 forecast_hour: hour,
@@ -165,7 +179,71 @@ fn a_hold_without_a_step_either_side_is_one_line_and_exit_2() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "--hold {hold}: {err}");
         assert_eq!(err.trim_end().lines().count(), 1, "--hold {hold}: {err}");
-        assert!(err.contains(s(&map)) && err.contains(says), "--hold {hold}: {err}");
+        assert!(
+            err.contains(s(&map)) && err.contains(says),
+            "--hold {hold}: {err}"
+        );
         assert!(o.stdout.is_empty());
+    }
+}
+
+/// Measurement for docs/time.md (run with `--ignored --nocapture`): on the two-step North
+/// Atlantic series and each pair of the Poland series, the earlier step carried along the
+/// motion estimated between the pair, against the later step (a fit, the motion having seen
+/// the later step), beside `verify-advection`'s wind and persistence; the mean guard per layer.
+#[test]
+#[ignore]
+fn motion_fit_on_the_real_pairs() {
+    use stratus::score::{compare, MAP_THRESHOLD};
+    use stratus_ingest::cloudmap::COVERAGE_FULL;
+    use stratus_ingest::series::{advect, motion, Series};
+    let dir = tempfile::tempdir().unwrap();
+    let na_files = [
+        sample("gfs-series/gfs.t18z.pgrb2.2p50.f000"),
+        sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"),
+    ];
+    let out = dir.path().join("na.png");
+    let o = stratus(&[
+        "ingest",
+        s(&na_files[0]),
+        s(&na_files[1]),
+        "--region",
+        "30,70,-60,40",
+        "--size",
+        "1024x512",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success());
+    let mask = |m: &CloudMap, c: usize| -> Vec<bool> {
+        let t = MAP_THRESHOLD as f64 * COVERAGE_FULL;
+        m.texels.iter().map(|x| x[c] as f64 > t).collect()
+    };
+    let na = Series::load(&dir.path().join("na.json")).unwrap();
+    let pl = Series::load(&poland(dir.path())).unwrap();
+    for (name, series, k0, k1) in [
+        ("na +0→+6", &na, 0, 1),
+        ("pl +0→+6", &pl, 0, 1),
+        ("pl +6→+12", &pl, 1, 2),
+        ("pl +0→+12", &pl, 0, 2),
+    ] {
+        let (a, b) = (series.step_map(k0).unwrap(), series.step_map(k1).unwrap());
+        let dt = 3600.0 * (series.steps()[k1].forecast_hour - series.steps()[k0].forecast_hour);
+        let t = std::time::Instant::now();
+        let m = motion::estimate(&a, &b, dt).unwrap();
+        let est = t.elapsed().as_secs_f64();
+        let (moved, wind) = (motion::carried(&a, &m), advect(&a, dt));
+        for l in &m.layers {
+            let truth = mask(&b, l.channel);
+            let d = |x: &CloudMap| compare(&mask(x, l.channel), &truth).dice;
+            let (dx, dy, g) = l.summary();
+            println!(
+                "{name} {}: motion fit {:.4} wind {:.4} persistence {:.4}; mean guard {g:.2}, mean guarded motion ({dx:.1}, {dy:.1}) px; estimate {est:.2} s",
+                l.kind.name(),
+                d(&moved),
+                d(&wind),
+                d(&a)
+            );
+        }
     }
 }

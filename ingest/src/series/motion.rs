@@ -618,6 +618,36 @@ pub fn blend(
     Ok(moment(a, b, w, interval_s, texels))
 }
 
+/// `a`'s coverage carried the whole interval along `motion` (each layer sampled at x − g·m(x));
+/// the rest of `a` unchanged. How much of the later step the motion explains (a fit, not a
+/// forecast: the motion was estimated from the later step).
+pub fn carried(a: &CloudMap, motion: &Motion) -> CloudMap {
+    let (mw, mh) = (a.width(), a.height());
+    let mut out = a.clone();
+    let grids: Vec<(usize, Grid)> = a
+        .meta
+        .layers
+        .iter()
+        .map(|l| (l.channel, layer_grid(a, l.channel)))
+        .collect();
+    out.texels
+        .par_chunks_mut(mw)
+        .enumerate()
+        .for_each(|(j, row)| {
+            for (i, t) in row.iter_mut().enumerate() {
+                let (x, y) = (i as f32, j as f32);
+                for (c, g) in &grids {
+                    let m = motion.layer(*c).map_or((0.0, 0.0), |lm| lm.at(x, y));
+                    t[*c] = coverage_to_sample(f64::from(g.sample(x - m.0, y - m.1)));
+                }
+                t[3] = t[0].max(t[1]).max(t[2]);
+            }
+        });
+    debug_assert_eq!(out.texels.len(), mw * mh);
+    crate::pipeline::fill_stats(&mut out.meta, &out.texels);
+    out
+}
+
 /// The plain cross-fade of `a` and `b` at `w`: no motion.
 pub fn crossfade(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<CloudMap> {
     blend(a, b, w, interval_s, &Motion::none(a))
