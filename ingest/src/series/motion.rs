@@ -7,9 +7,13 @@
 //! and a Gaussian pyramid of both steps is built. From the coarsest level down, Horn–Schunck
 //! optical flow with warping: the earlier step is warped by the flow so far, the brightness
 //! constancy equation is linearised there and the flow increment solved with a smoothness
-//! term (Jacobi iterations), a few warps a level; the flow is carried to the next finer level
-//! doubled. The result `m` says where the later step's coverage came from: b(x) ≈ a(x − m(x)),
-//! in map pixels per interval (x east, y south).
+//! term (Jacobi iterations), a few warps a level; the data term is robust (Charbonnier), each
+//! warp's increment is bounded and kept only where it brought the steps closer, so change that
+//! is not motion does not drive the flow off; the flow is carried to the next finer level
+//! doubled. It is run from no motion and from the layer's region-mean wind over the interval,
+//! and each result kept where it explains the change better (`best_flow`). The result `m`
+//! says where the later step's coverage came from: b(x) ≈ a(x − m(x)), in map pixels per
+//! interval (x east, y south).
 //!
 //! **Guard.** Over hours cloud forms and clears in place far more than a pattern moves
 //! (docs/time.md), and optical flow explains any change, growth included, as some motion. So
