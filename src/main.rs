@@ -51,6 +51,8 @@ enum Command {
     Bench(cmd::bench::Args),
     /// Carry a series' earlier step forward with its winds; Dice per layer against the later step, beside persistence.
     VerifyAdvection(cmd::verify_advection::Args),
+    /// Leave a series' step out and rebuild it from the steps either side: Dice per layer of the motion blend, the cross-fade and the wind blend.
+    VerifyInterpolation(cmd::verify_interpolation::Args),
     /// The main job on the embedded sample: ingest, render a few views, print the Dice score.
     Demo(cmd::demo::Args),
 }
@@ -102,6 +104,7 @@ fn main() -> ExitCode {
         Command::Score(a) => cmd::score::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::VerifyAdvection(a) => cmd::verify_advection::run(a),
+        Command::VerifyInterpolation(a) => cmd::verify_interpolation::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Flight(a) => cmd::flight::run(a),
         Command::Fly(a) => cmd::fly::run(a),

@@ -25,6 +25,7 @@ pub mod render;
 pub mod score;
 pub mod section;
 pub mod verify_advection;
+pub mod verify_interpolation;
 
 /// Exit code when stdout's reader has gone: 128 + SIGPIPE, what a shell reports for a pipe
 /// writer the signal stopped (`yes | head -1` under `set -o pipefail`).

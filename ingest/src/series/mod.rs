@@ -11,6 +11,7 @@ pub mod advect;
 pub mod check;
 pub mod inputs;
 pub mod meta;
+pub mod motion;
 pub mod winds;
 pub mod write;
 
