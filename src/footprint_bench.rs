@@ -27,6 +27,10 @@ pub const TURN_DEG: f64 = 0.1;
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
     pub view: String,
+    /// Where the camera is (lat, lon, altitude, heading, pitch; or "straight down") and the
+    /// Sun's elevation there (degrees).
+    pub camera: String,
+    pub sun_elevation_deg: Option<f64>,
     pub preset: &'static str,
     pub width: u32,
     pub height: u32,
@@ -121,14 +125,26 @@ pub fn cases(bench_size: (u32, u32)) -> Result<Vec<MapCases>, FootprintError> {
     let ea = east_asia().map()?;
     let t = valid(&ea, "the East Asia map")?;
     let cam = crate::app::start::start_pilot(&ea, t).camera();
+    // At the map's valid time it is night there (the HUD says so); the same view at local
+    // solar noon too, the time the HUD suggests.
+    let noon = crate::app::daylight::solar_noon(t, cam.lon_deg).unwrap_or(t);
     all.push(MapCases {
-        cases: vec![Case {
-            name: "window start view (East Asia)".into(),
-            view: View::Perspective(cam),
-            size: (320, 180),
-            settings: Settings::new(Preset::Fast, t),
-            fixed_ev: None,
-        }],
+        cases: vec![
+            Case {
+                name: "window start view (East Asia)".into(),
+                view: View::Perspective(cam),
+                size: (320, 180),
+                settings: Settings::new(Preset::Fast, t),
+                fixed_ev: None,
+            },
+            Case {
+                name: "window start view at local noon".into(),
+                view: View::Perspective(cam),
+                size: (320, 180),
+                settings: Settings::new(Preset::Fast, noon),
+                fixed_ev: None,
+            },
+        ],
         map: ea,
     });
     // The time-lapse's first frame: 250 km over the Bay of Biscay (docs/flights/
@@ -172,18 +188,25 @@ pub fn cases(bench_size: (u32, u32)) -> Result<Vec<MapCases>, FootprintError> {
     Ok(all)
 }
 
-/// Measure every case; `progress` hears each view's name.
+/// Measure every case whose name contains `only` (all: ""); `progress` hears each view's name.
 pub fn run(
     r: &mut Renderer,
     sets: &[MapCases],
+    only: &str,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<Row>, RenderError> {
     let mut rows = Vec::new();
     for set in sets {
+        let cases: Vec<&Case> = set.cases.iter().filter(|c| c.name.contains(only)).collect();
+        if cases.is_empty() {
+            continue;
+        }
         r.set_map(&set.map);
-        for c in &set.cases {
+        for c in cases {
             progress(&c.name);
-            rows.push(measure(r, c)?);
+            let row = measure(r, c)?;
+            tracing::info!("{row:?}");
+            rows.push(row);
         }
     }
     Ok(rows)
@@ -208,8 +231,8 @@ pub fn linear_box(out: &Output, k: u32) -> Vec<[f64; 3]> {
         for x in 0..w * k {
             let i = ((y * out.width + x) * 4) as usize;
             let o = &mut v[((y / k) * w + x / k) as usize];
-            for c in 0..3 {
-                o[c] += srgb_to_linear(out.pixels[i + c]) / n;
+            for (c, v) in o.iter_mut().enumerate() {
+                *v += srgb_to_linear(out.pixels[i + c]) / n;
             }
         }
     }
@@ -301,8 +324,28 @@ pub fn measure(r: &mut Renderer, c: &Case) -> Result<Row, RenderError> {
         }
         None => (None, None),
     };
+    let (camera, sun_elevation_deg) = match &c.view {
+        View::Perspective(k) => {
+            let f = k.forward_enu.normalize();
+            let sun = crate::sun::Sky::at(s.time, k.lat_deg, k.lon_deg).sun_elevation_deg;
+            (
+                format!(
+                    "{:.3}°N {:.3}°E {:.0} m, heading {:.1}°, pitch {:.1}°",
+                    k.lat_deg,
+                    k.lon_deg,
+                    k.alt_m,
+                    f.x.atan2(f.y).to_degrees().rem_euclid(360.0),
+                    f.z.clamp(-1.0, 1.0).asin().to_degrees()
+                ),
+                Some(sun),
+            )
+        }
+        View::TopDown => ("straight down".to_string(), None),
+    };
     Ok(Row {
         view: c.name.clone(),
+        camera,
+        sun_elevation_deg,
         preset: preset_name(&s),
         width: w,
         height: h,

@@ -27,12 +27,18 @@ pub fn note(utc: DateTime<Utc>, lat: f64, lon: f64) -> Option<String> {
     } else {
         "dusk"
     };
-    let noon = solar.date_naive().and_hms_opt(12, 0, 0)?.and_utc() - offset;
+    let noon = solar_noon(utc, lon)?;
     Some(format!(
         "{what} here (local solar {}, Sun {el:.0}°): for daylight move the time slider or start with --time {}",
         solar.format("%H:%M"),
         noon.format("%Y-%m-%dT%H:%M:%SZ")
     ))
+}
+
+/// The UTC time of local mean solar noon at `lon` on the local solar day of `utc`.
+pub fn solar_noon(utc: DateTime<Utc>, lon: f64) -> Option<DateTime<Utc>> {
+    let offset = Duration::seconds((lon / 15.0 * 3600.0) as i64);
+    Some((utc + offset).date_naive().and_hms_opt(12, 0, 0)?.and_utc() - offset)
 }
 
 #[cfg(test)]

@@ -54,6 +54,9 @@ pub struct Args {
     /// makes to each (docs/footprint.md).
     #[arg(long, conflicts_with = "reprojection")]
     pub footprint: bool,
+    /// With --footprint: only the views whose name contains this.
+    #[arg(long, requires = "footprint", default_value = "")]
+    pub views: String,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -178,7 +181,7 @@ fn footprint(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
     let mut r = Renderer::new(g, &sets[0].map);
     let total = sets.iter().map(|s| s.cases.len()).sum::<usize>() as u64;
     let pb = progress_bar(total, "footprint");
-    let rows = run(&mut r, &sets, &|what| {
+    let rows = run(&mut r, &sets, &a.views, &|what| {
         pb.set_message(what.to_string());
         pb.inc(1);
     })?;
