@@ -8,17 +8,19 @@
 //!
 //! 1. `sun`, `picture` — the leaves: the Sun and Moon for a moment, PNG files written atomically
 //! 2. `render` — the wgpu renderer: settings, targets, the stages of a frame and their shaders
-//! 3. `timeline`, `flight`, `follow`, `scenes`, `score` — what feeds or measures the renderer
+//! 3. `timeline`, `flight`, `follow`, `scenes`, `score`, `scaled` — what feeds or measures the renderer
 //! 4. `scene`, `bench`, `app` — what commands start from: a `--map` opened once, the bench, the window
-//! 5. `reprojection_bench` — temporal reprojection measured along a flight, with the bench's measures
+//! 5. `reprojection_bench`, `footprint_bench` — reprojection along a flight and pixel footprints against supersampling, with the bench's measures
 
 pub mod app;
 pub mod bench;
 pub mod flight;
 pub mod follow;
+pub mod footprint_bench;
 pub mod picture;
 pub mod render;
 pub mod reprojection_bench;
+pub mod scaled;
 pub mod scene;
 pub mod scenes;
 pub mod score;

@@ -129,8 +129,36 @@ pub fn gfs() -> Sample {
                 time: None,
             },
             TOP_DOWN,
+            // The demo's views (issue 30: the weather, not clear sea and sky). Above the cold
+            // front's north-western edge (41°N 26°W: altocumulus thickening southward into
+            // nimbostratus under cirrus), looking south over its deck.
+            Scene {
+                name: "front-above",
+                view: View::Perspective(Camera::new(41.5, -26.2, 15_000.0, 170.0, -20.0)),
+                time: None,
+            },
+            // The same edge from the sea just behind it: broken altocumulus overhead merging
+            // into the front's deck to the south.
+            Scene {
+                name: "front-below",
+                view: View::Perspective(Camera::new(41.6, -26.0, 50.0, 180.0, 20.0)),
+                time: None,
+            },
+            // At 1 km at the south-western edge of the cumulonimbus cluster (49–51.5°N,
+            // 26–22°W), looking at one tower and its anvil.
+            Scene {
+                name: "cumulonimbus",
+                view: View::Perspective(Camera::new(49.4, -25.5, 1_000.0, 62.0, 8.0)),
+                time: None,
+            },
+            // Over the broken cumulus behind the front (53°N 33°W: low 0.75, tops 2.4 km).
+            Scene {
+                name: "broken-field",
+                view: View::Perspective(Camera::new(53.0, -33.0, 4_000.0, 90.0, -30.0)),
+                time: None,
+            },
         ],
-        demo_views: vec!["above-noon", "above-dusk", "inside-layer", "horizon-ground"],
+        demo_views: vec!["front-above", "front-below", "cumulonimbus", "broken-field"],
     }
 }
 

@@ -202,3 +202,149 @@ fn one_empty_mask_scores_zero() {
     assert_eq!(s.dice, 0.0);
     assert!(s.dice.is_finite() && s.iou.is_finite());
 }
+
+// ---------------------------------------------------------------------------------------------
+// The gate beyond its own cases (issue 30): maps the fixed cases never use, drawn at test time.
+
+/// SplitMix64: a few lines, reproducible from the printed seed on every platform.
+struct Draw(u64);
+
+impl Draw {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in lo..hi.
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn pick<'a, T>(&mut self, v: &'a [T]) -> &'a T {
+        &v[(self.next() % v.len() as u64) as usize]
+    }
+}
+
+/// One drawn case: the `score` arguments after `--grib FILE`.
+#[derive(Debug)]
+struct Case {
+    file: &'static str,
+    region: String,
+    level: Option<u32>,
+    rh_cr: f64,
+    preset: &'static str,
+}
+
+impl Case {
+    fn draw(d: &mut Draw) -> Case {
+        // The real GFS files (the 0.25° Poland cut covers only 48–56°N 13–25°E).
+        const GLOBAL: [&str; 3] = [
+            "gfs/gfs.t12z.pgrbf120.2p5deg.grib2",
+            "gfs-series/gfs.t18z.pgrb2.2p50.f000",
+            "gfs-series/gfs.t18z.pgrb2.2p50.f006",
+        ];
+        const POLAND: [&str; 3] = [
+            "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.f000",
+            "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.f006",
+            "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.f012",
+        ];
+        let (file, region) = if d.next().is_multiple_of(5) {
+            (*d.pick(&POLAND), "48,56,13,25".to_string())
+        } else {
+            // A box 25–50° high and 30–70° wide anywhere between 65°S and 75°N.
+            let h = d.range(25.0, 50.0).round();
+            let w = d.range(30.0, 70.0).round();
+            let s = d.range(-65.0, 75.0 - h).round();
+            let west = d.range(-180.0, 180.0 - w).round();
+            (
+                *d.pick(&GLOBAL),
+                format!("{s},{},{west},{}", s + h, west + w),
+            )
+        };
+        let level = *d.pick(&[Some(850), Some(700), Some(500), Some(400), Some(300), None]);
+        let rh_cr = *d.pick(&[0.65, 0.7, 0.75, 0.8, 0.85]);
+        let preset = *d.pick(&["fast", "balanced", "high"]);
+        Case {
+            file,
+            region,
+            level,
+            rh_cr,
+            preset,
+        }
+    }
+
+    /// The total DSC `score` gives it.
+    fn dice(&self) -> f64 {
+        let g = sample(self.file);
+        let level = self.level.map(|l| l.to_string());
+        let rh = self.rh_cr.to_string();
+        let mut args = vec![
+            "score",
+            "--grib",
+            g.to_str().unwrap(),
+            "--region",
+            &self.region,
+            "--size",
+            "520x440",
+            "--preset",
+            self.preset,
+            "--rh-cr",
+            &rh,
+            "--json",
+        ];
+        if let Some(l) = &level {
+            args.extend(["--level", l]);
+        }
+        let o = stratus(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{self:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v["total"]["dice"].as_f64().unwrap()
+    }
+}
+
+/// Seeded random cases beside the fixed ones: a file among the real GFS samples, a region, one
+/// level (850–300 hPa) or all layers, an rh_cr and a preset; each must reach the gate. The seed
+/// is printed (STRATUS_SCORE_SEED=N repeats a run; STRATUS_SCORE_CASES=N draws N, default 3).
+///
+/// Ignored until the footprint-aware march (issue 30): measured on this code over 16 draws
+/// (seeds 30 and 2026), 6 score below 0.95 (0.815–0.946; median of all 0.978), mostly single
+/// low levels and all layers over the tropics (docs/footprint.md, "The Dice gate beyond its
+/// cases").
+#[test]
+#[ignore = "today's renders score below 0.95 on many drawn maps (docs/footprint.md)"]
+fn gate_holds_on_random_maps() {
+    let seed = std::env::var("STRATUS_SCORE_SEED")
+        .ok()
+        .and_then(|s| s.parse::<u64>().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs())
+        });
+    let n = std::env::var("STRATUS_SCORE_CASES")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(3);
+    println!("STRATUS_SCORE_SEED={seed}");
+    let mut d = Draw(seed);
+    let mut low = Vec::new();
+    for _ in 0..n {
+        let c = Case::draw(&mut d);
+        let dice = c.dice();
+        println!("DSC {dice:.4}  {c:?}");
+        if dice < GATE.parse::<f64>().unwrap() {
+            low.push(format!("{dice:.4} {c:?}"));
+        }
+    }
+    assert!(
+        low.is_empty(),
+        "seed {seed}: below the gate {GATE}:\n{}",
+        low.join("\n")
+    );
+}

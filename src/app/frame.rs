@@ -110,6 +110,7 @@ impl Running {
             march_size: self.march_size,
             follow,
             weather: self.weather_line(shown.time),
+            daylight: super::daylight::note(shown.time, self.pilot.lat, self.pilot.lon),
         };
         let input = self.ui.state.take_egui_input(&self.screen.window);
         let mut actions = Actions::default();

@@ -6,6 +6,7 @@
 //! late. `--frames N --screenshot PATH` renders N frames, saves the last one and exits (CI
 //! under Xvfb).
 
+pub mod daylight;
 mod frame;
 pub mod moment;
 pub mod panel;

@@ -65,6 +65,8 @@ pub struct Hud {
     pub follow: Option<String>,
     /// A series: the valid time and the steps around it.
     pub weather: Option<String>,
+    /// Why the picture is dark: the Sun low or down here (super::daylight).
+    pub daylight: Option<String>,
 }
 
 impl Controls {
@@ -185,6 +187,9 @@ pub fn hud(ui: &mut egui::Ui, h: &Hud) {
                     h.utc.format("%Y-%m-%d %H:%M"),
                     solar_time(h.utc, h.lon)
                 ));
+                if let Some(d) = &h.daylight {
+                    ui.colored_label(egui::Color32::from_rgb(255, 200, 90), d);
+                }
                 if let Some(w) = &h.weather {
                     ui.monospace(w);
                 }

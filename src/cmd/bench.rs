@@ -49,6 +49,15 @@ pub struct Args {
     /// Quality preset the reprojection is measured at.
     #[arg(long, default_value = "balanced")]
     pub preset: stratus::render::Preset,
+    /// Measure what a pixel shows against what it covers instead (issue 30): the window's
+    /// start view, the time-lapse's 250 km view and the bench's scenes (at --size), each at
+    /// the product's size against its own 4×4-supersampled render, and the change a 0.1° turn
+    /// makes to each (docs/footprint.md).
+    #[arg(long, conflicts_with = "reprojection")]
+    pub footprint: bool,
+    /// With --footprint: only the views whose name contains this.
+    #[arg(long, requires = "footprint", default_value = "")]
+    pub views: String,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -63,6 +72,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if a.reprojection {
         return reprojection(&a, size);
+    }
+    if a.footprint {
+        return footprint(&a, size);
     }
     let sample = scenes::synthetic();
     let map: CloudMap = sample.map()?;
@@ -156,6 +168,29 @@ fn reprojection(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
     if a.json {
         out!("{}", serde_json::to_string_pretty(&rows)?)?;
     } else {
+        out!("{}", table(&rows).trim_end())?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bench --footprint`: each view against its own supersampled render.
+fn footprint(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
+    use stratus::footprint_bench::{cases, run, table};
+    let sets = cases(size)?;
+    let g = Gpu::new(a.adapter.as_deref())?;
+    eprintln!("stratus: adapter {}", gpu::describe(&g.info));
+    let mut r = Renderer::new(g, &sets[0].map);
+    let total = sets.iter().map(|s| s.cases.len()).sum::<usize>() as u64;
+    let pb = progress_bar(total, "footprint");
+    let rows = run(&mut r, &sets, &a.views, &|what| {
+        pb.set_message(what.to_string());
+        pb.inc(1);
+    })?;
+    pb.finish_and_clear();
+    if a.json {
+        out!("{}", serde_json::to_string_pretty(&rows)?)?;
+    } else {
+        out!("adapter: {}\n", gpu::describe(&r.gpu.info))?;
         out!("{}", table(&rows).trim_end())?;
     }
     Ok(ExitCode::SUCCESS)

@@ -53,6 +53,11 @@ pub struct Args {
     /// the rest from the frame before, as the window does (for timing it).
     #[arg(long, default_value = "off", action = clap::ArgAction::Set, value_parser = super::fly::parse_on_off)]
     pub reprojection: bool,
+    /// March at this fraction of --size (0.05..=1) and enlarge the march to --size in the
+    /// present pass, as the window does at its render scale (`fly --render-scale`; a CPU
+    /// adapter's window defaults to 0.25): the window's picture, headless.
+    #[arg(long, default_value_t = 1.0)]
+    pub render_scale: f32,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -70,12 +75,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         (None, false) => anyhow::bail!("--camera LAT,LON,ALT_M or --top-down is required"),
     };
     let (w, h) = parse_size(&a.size)?;
+    if !(0.05..=1.0).contains(&a.render_scale) {
+        anyhow::bail!("--render-scale {} must be in 0.05..=1", a.render_scale);
+    }
     let mut r = Renderer::new(a.look.gpu()?, &map);
     if let Some(tl) = &mut timeline {
         // One frame: the step after the two around --time is never needed.
         tl.load_ahead = false;
         settings.drift_m = tl.prepare(&mut r, settings.time)?;
         settings.streak_wind = Some(tl.streak_wind());
+    }
+    if a.render_scale < 1.0 {
+        return scaled(&a, &mut r, &view, (w, h), &settings);
     }
     let mut out = r.render(&view, w, h, &settings)?;
     if a.repeat > 1 {
@@ -96,6 +107,40 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 tl.series.steps().len()
             )?;
         }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `--render-scale` below 1: each frame marched small and enlarged as the window does.
+fn scaled(
+    a: &Args,
+    r: &mut Renderer,
+    view: &View,
+    size: (u32, u32),
+    settings: &stratus::render::Settings,
+) -> anyhow::Result<ExitCode> {
+    let march = stratus::scaled::march_size(size, a.render_scale);
+    let mut runs = Vec::new();
+    for _ in 0..a.repeat {
+        runs.push(stratus::scaled::render(r, view, march, size, settings)?);
+    }
+    let ms = {
+        let mut t: Vec<f64> = runs.iter().map(|x| x.1).collect();
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    // With --reprojection on the last frame is the one the history has built up.
+    let (img, _) = runs.pop().ok_or_else(|| anyhow::anyhow!("no frame"))?;
+    save_png(&a.out, &img)?;
+    if a.timings {
+        out!(
+            "wall {ms:.1} ms (median of {}; march {}×{} enlarged to {}×{})",
+            a.repeat,
+            march.0,
+            march.1,
+            size.0,
+            size.1
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }

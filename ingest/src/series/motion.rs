@@ -32,9 +32,10 @@
 use chrono::Duration;
 use rayon::prelude::*;
 
-use crate::cloudmap::{coverage_to_sample, CloudMap, COVERAGE_FULL};
+use crate::cloudmap::CloudMap;
+use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 use crate::error::{IngestError, Result};
-use crate::meta::LayerKind;
+use crate::layer::LayerKind;
 
 use super::advect::{check_compatible, genus_switch_w};
 
