@@ -36,8 +36,43 @@ quiet $S flight --map "$w/natl.json" --path docs/flights/natl-timelapse.json --o
   --size 160x90 --fps 0.1 --preset fast --exposure 0
 
 # The listing names files relative to where they were made, so two runs compare line by line.
-{
-  (cd docs && find gallery sections -type f -name '*.png' -print0 | sort -z | xargs -0 sha256sum)
-  (cd "$w" && find . -type f ! -name '*.mp4' -print0 | sort -z | xargs -0 sha256sum)
-} > "$list"
+# Its hashes are of content: a PNG's header and decoded pixels (not its text chunks, which carry
+# the per-write image id), a JSON file without `image_id` and with the scratch folder's path
+# replaced; every other file as it is.
+python3 - "$w" docs > "$list" <<'PY'
+import hashlib, json, pathlib, struct, sys, zlib
+
+scratch, docs = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+
+def png(b):
+    i, head, data = 8, b"", b""
+    while i < len(b):
+        n = struct.unpack(">I", b[i:i + 4])[0]
+        t, d = b[i + 4:i + 8], b[i + 8:i + 8 + n]
+        head += d if t in (b"IHDR", b"PLTE") else b""
+        data += d if t == b"IDAT" else b""
+        i += 12 + n
+    return head + zlib.decompress(data)
+
+def js(b):
+    def strip(j):
+        if isinstance(j, dict):
+            return {k: strip(v) for k, v in j.items() if k != "image_id"}
+        if isinstance(j, list):
+            return [strip(v) for v in j]
+        return j
+    text = json.dumps(strip(json.loads(b)), sort_keys=True)
+    return text.replace(str(scratch), "SCRATCH").encode()
+
+def content(p):
+    b = p.read_bytes()
+    return png(b) if p.suffix == ".png" else js(b) if p.suffix == ".json" else b
+
+for base, names in ((docs, ("gallery", "sections")), (scratch, (".",))):
+    for name in names:
+        for p in sorted((base / name).rglob("*")):
+            if p.is_file() and p.suffix != ".mp4" and (base is scratch or p.suffix == ".png"):
+                rel = p.relative_to(base)
+                print(hashlib.sha256(content(p)).hexdigest(), rel)
+PY
 echo "$(wc -l < "$list") files fingerprinted into $list"

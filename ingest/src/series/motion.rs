@@ -33,9 +33,9 @@ use chrono::Duration;
 use rayon::prelude::*;
 
 use crate::cloudmap::CloudMap;
-use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 use crate::error::{IngestError, Result};
 use crate::layer::LayerKind;
+use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 
 use super::advect::{check_compatible, genus_switch_w};
 
