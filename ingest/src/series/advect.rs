@@ -292,6 +292,19 @@ pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<Clou
         let (lb, ob) = trace(lat, lon, (1.0 - w) * interval_s, |p, q| wind(c, p, q));
         (1.0 - w) * sample_coverage(a, c, la, lo) + w * sample_coverage(b, c, lb, ob)
     });
+    Ok(moment(a, b, w, interval_s, texels))
+}
+
+/// The map of the moment `w` between `a` and `b` holding `texels` (however they were blended):
+/// the ground mixed in time, each layer's genus from the step its switch says, the nearer
+/// step's sidecar with its valid time moved to the moment, statistics of `texels`.
+pub(super) fn moment(
+    a: &CloudMap,
+    b: &CloudMap,
+    w: f64,
+    interval_s: f64,
+    texels: Vec<[u16; 4]>,
+) -> CloudMap {
     let nearer = if w < 0.5 { a } else { b };
     // The ground in between: its fields mixed in time where both steps have it on one
     // lattice (the terrain is the same; snow, ice and cloud water change), else the nearer's.
@@ -322,7 +335,7 @@ pub fn blend(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<Clou
     let to_moment = if w < 0.5 { w } else { w - 1.0 } * interval_s;
     shift_time(&mut out, to_moment);
     crate::pipeline::fill_stats(&mut out.meta, &out.texels);
-    Ok(out)
+    out
 }
 
 #[cfg(test)]

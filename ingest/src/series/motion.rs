@@ -29,7 +29,6 @@
 //! f = 0 and 1 the result is the step itself. Everything but the coverage (structure, ground,
 //! genus switch, valid time) is taken as [`super::advect::blend`] takes it.
 
-use chrono::Duration;
 use rayon::prelude::*;
 
 use crate::cloudmap::CloudMap;
@@ -37,7 +36,7 @@ use crate::error::{IngestError, Result};
 use crate::layer::LayerKind;
 use crate::sample::{coverage_to_sample, COVERAGE_FULL};
 
-use super::advect::{check_compatible, genus_switch_w};
+use super::advect::{check_compatible, moment};
 
 /// Largest working grid a layer's flow is estimated on, pixels.
 pub const WORK_PIXELS: usize = 256 * 256;
@@ -656,43 +655,6 @@ pub fn carried(a: &CloudMap, motion: &Motion) -> CloudMap {
 /// The plain cross-fade of `a` and `b` at `w`: no motion.
 pub fn crossfade(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64) -> Result<CloudMap> {
     blend(a, b, w, interval_s, &Motion::none(a))
-}
-
-/// The map of the moment `w` between `a` and `b` holding `texels`: structure, ground, genus
-/// switch, sidecar fields and valid time as [`super::advect::blend`] makes them.
-fn moment(a: &CloudMap, b: &CloudMap, w: f64, interval_s: f64, texels: Vec<[u16; 4]>) -> CloudMap {
-    let nearer = if w < 0.5 { a } else { b };
-    let ground = match (&a.ground, &b.ground) {
-        (Some(ga), Some(gb)) => ga.mix(gb, w as f32),
-        _ => None,
-    }
-    .or_else(|| nearer.ground.clone());
-    let mut structure = nearer.structure.clone();
-    if let (Some(s), Some(sa), Some(sb)) = (&mut structure, &a.structure, &b.structure) {
-        if sa.types.len() == s.types.len() && sb.types.len() == s.types.len() {
-            for (k, t) in s.types.iter_mut().enumerate() {
-                let from = if w < f64::from(genus_switch_w(k)) {
-                    sa
-                } else {
-                    sb
-                };
-                t[..3].copy_from_slice(&from.types[k][..3]);
-            }
-        }
-    }
-    let mut out = CloudMap {
-        meta: nearer.meta.clone(),
-        texels,
-        structure,
-        ground,
-    };
-    let to_moment = if w < 0.5 { w } else { w - 1.0 } * interval_s;
-    let d = Duration::milliseconds((to_moment * 1000.0).round() as i64);
-    let src = &mut out.meta.source;
-    src.valid_time = src.valid_time.map(|t| t + d);
-    src.forecast_step_h += to_moment / 3600.0;
-    crate::pipeline::fill_stats(&mut out.meta, &out.texels);
-    out
 }
 
 #[cfg(test)]
