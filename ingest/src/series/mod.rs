@@ -74,20 +74,6 @@ pub fn open_map(path: &Path, time: Option<DateTime<Utc>>) -> Result<CloudMap> {
     }
 }
 
-/// The files a `--map` argument reads: a series' sidecar and every file of its steps, or a
-/// map's sidecar and PNG (as far as the sidecars can be read).
-pub fn map_files(path: &Path) -> Vec<PathBuf> {
-    let mut files = vec![path.to_path_buf()];
-    if is_series(path) {
-        if let Ok(s) = Series::load(path) {
-            files.extend(s.files());
-        }
-    } else if let Ok(meta) = load_meta(path) {
-        files.push(meta.image_path(path));
-    }
-    files
-}
-
 impl Series {
     /// Read and check the series sidecar `path` and each step's sidecar: present, valid, the
     /// step the series entry says it is and of the series' run, region, size and layers
