@@ -55,6 +55,34 @@ fn mask(m: &CloudMap, c: usize) -> Vec<bool> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let (series, k) = held_step(&a)?;
+    let steps = series.steps();
+    let (t0, t, t1) = (
+        steps[k - 1].valid_time,
+        steps[k].valid_time,
+        steps[k + 1].valid_time,
+    );
+    let interval = (t1 - t0).num_milliseconds() as f64 / 1000.0;
+    let w = (t - t0).num_milliseconds() as f64 / 1000.0 / interval;
+    let (before, held, after) = (
+        series.step_map(k - 1)?,
+        series.step_map(k)?,
+        series.step_map(k + 1)?,
+    );
+    let report = Report {
+        hold: a.hold,
+        layers: scores(&before, &held, &after, w, interval)?,
+    };
+    if a.json {
+        out!("{}", serde_json::to_string_pretty(&report)?)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    print_table(&a, &series, k, &report)
+}
+
+/// The series and the index of the step `--hold` names, refused (one line) where it is no
+/// step, or the first or the last.
+fn held_step(a: &Args) -> anyhow::Result<(Series, usize)> {
     if !a.hold.is_finite() {
         anyhow::bail!("--hold {}: a forecast hour is a finite number", a.hold);
     }
@@ -83,20 +111,19 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             series.hours_text()
         );
     }
-    let (t0, t, t1) = (
-        steps[k - 1].valid_time,
-        steps[k].valid_time,
-        steps[k + 1].valid_time,
-    );
-    let interval = (t1 - t0).num_milliseconds() as f64 / 1000.0;
-    let w = (t - t0).num_milliseconds() as f64 / 1000.0 / interval;
-    let (before, held, after) = (
-        series.step_map(k - 1)?,
-        series.step_map(k)?,
-        series.step_map(k + 1)?,
-    );
+    Ok((series, k))
+}
+
+/// The three blends of `before` and `after` at `w`, each scored against `held` per layer.
+fn scores(
+    before: &CloudMap,
+    held: &CloudMap,
+    after: &CloudMap,
+    w: f64,
+    interval: f64,
+) -> anyhow::Result<Vec<LayerScore>> {
     let clock = std::time::Instant::now();
-    let m = motion::estimate(&before, &after, interval)?;
+    let m = motion::estimate(before, after, interval)?;
     tracing::info!("motion estimate: {:.2} s", clock.elapsed().as_secs_f64());
     for l in &m.layers {
         let (dx, dy, g) = l.summary();
@@ -105,15 +132,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             l.kind.name()
         );
     }
-    let moved = motion::blend(&before, &after, w, interval, &m)?;
-    let faded = motion::crossfade(&before, &after, w, interval)?;
-    let carried = blend(&before, &after, w, interval)?;
-    let layers = held
+    let moved = motion::blend(before, after, w, interval, &m)?;
+    let faded = motion::crossfade(before, after, w, interval)?;
+    let carried = blend(before, after, w, interval)?;
+    let layers: Vec<LayerScore> = held
         .meta
         .layers
         .iter()
         .map(|l| {
-            let truth = mask(&held, l.channel);
+            let truth = mask(held, l.channel);
             let dice = |x: &CloudMap| compare(&mask(x, l.channel), &truth).dice;
             LayerScore {
                 kind: l.kind,
@@ -123,14 +150,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             }
         })
         .collect();
-    let report = Report {
-        hold: a.hold,
-        layers,
-    };
-    if a.json {
-        out!("{}", serde_json::to_string_pretty(&report)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
+    Ok(layers)
+}
+
+/// The report as a table, one row per layer.
+fn print_table(a: &Args, series: &Series, k: usize, report: &Report) -> anyhow::Result<ExitCode> {
+    let steps = series.steps();
     out!(
         "{}: {} rebuilt from {} and {} vs the {} step (Dice, coverage > {})",
         shown(&a.map),
