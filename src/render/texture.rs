@@ -11,27 +11,27 @@ pub fn texture_2d(
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
 ) -> wgpu::Texture {
-    dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
+    let size = (width, height, 1);
+    single_level(dev, label, size, wgpu::TextureDimension::D2, format, usage)
 }
 
 /// A single-level 3D texture.
 pub fn texture_3d(
     dev: &wgpu::Device,
     label: &str,
+    size: (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    single_level(dev, label, size, wgpu::TextureDimension::D3, format, usage)
+}
+
+/// A texture of one mip level and one sample; `depth` is the array layers of a 2D texture.
+fn single_level(
+    dev: &wgpu::Device,
+    label: &str,
     (width, height, depth): (u32, u32, u32),
+    dimension: wgpu::TextureDimension,
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
 ) -> wgpu::Texture {
@@ -44,7 +44,7 @@ pub fn texture_3d(
         },
         mip_level_count: 1,
         sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
+        dimension,
         format,
         usage,
         view_formats: &[],
