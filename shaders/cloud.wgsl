@@ -2,8 +2,8 @@
 // common.wgsl): the device's and the map's bindings (groups 0 and 1, render::march's table),
 // the weather lookup, the paper's layer density (DESIGN §2) and the genus columns (DESIGN §7).
 @group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
-@group(0) @binding(1) var shape_tex: texture_3d<f32>;
-@group(0) @binding(2) var detail_tex: texture_3d<f32>;
+@group(0) @binding(1) var shape_tex: texture_3d<f32>;    // shape noise statistics (mean, variance), mipped
+@group(0) @binding(2) var detail_tex: texture_3d<f32>;   // detail noise statistics, mipped
 @group(0) @binding(3) var clamp_lin: sampler;
 @group(0) @binding(4) var repeat_lin: sampler;
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, N_COUNTERS>;
@@ -160,30 +160,45 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
     return textureLoad(coarse, c, 0).r <= 0.0;
 }
 
-// The shape noise's low-frequency FBM at np, remapped by its Perlin-Worley channel (eqs 11–14).
-fn shape_noise(np: vec3<f32>) -> f32 {
-    let sn = textureSampleLevel(shape_tex, repeat_lin, np / f.shape_period_m, 0.0);
-    let fbm = sn.g * 0.625 + sn.b * 0.25 + sn.a * 0.125;
-    return remap(sn.r, fbm - 1.0, 1.0, 0.0, 1.0);
+// Footprint-aware sampling (issue 30). The width (m) of what the current sample stands for:
+// the view ray's cone there (pixel angle × distance; a map pixel for the score's nadir rays),
+// set by the march before each density look-up and kept for that sample's light samples; 0
+// (a point) in the stages that set nothing (section, shadow).
+var<private> footprint_m: f32;
+// Texels per side of the shape and detail noise (render::noise::SHAPE_SIZE, DETAIL_SIZE).
+const SHAPE_TEXELS: f32 = 128.0;
+const DETAIL_TEXELS: f32 = 32.0;
+
+// The mip level whose texel is the footprint's width, for a noise of `texel_m` metres a texel:
+// detail finer than about two footprints is averaged away, not point-sampled.
+fn footprint_lod(texel_m: f32) -> f32 {
+    return log2(max(footprint_m / texel_m, 1.0));
 }
 
 // Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`; the
-// shape noise `freq` times finer than its period),
-// eroded by detail noise at the edges, times the density profile gd (DESIGN §2 eqs 15–18).
+// shape noise `freq` times finer than its period), eroded by detail noise at the edges, times
+// the density profile gd (DESIGN §2 eqs 15–18). Both noises are read at the mip level of the
+// sample's footprint (render::noise: each level the mean of the carved noise value over the
+// texels it covers), so a far sample takes the noise averaged over what its pixel covers, the
+// same value from one frame to the next, instead of one point of detail finer than the pixel.
+// Only the mean is read: carving over the noise's spread in the footprint as well (its
+// variance and bounds are in the same texels) made the far field denser than its
+// supersampled picture (docs/footprint.md).
 fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detail: bool, freq: f32) -> f32 {
     if (MEAN_DENSITY) {
         return mean_carve(ns_scale, lo) * gd;
     }
-    let ns_tex = shape_noise(np * freq);
-    let ns = sat(remap(ns_tex * ns_scale, lo, 1.0, 0.0, 1.0));
+    let shape_texel = f.shape_period_m / (SHAPE_TEXELS * freq);
+    let sn = textureSampleLevel(shape_tex, repeat_lin, np * freq / f.shape_period_m, footprint_lod(shape_texel)).r;
+    let ns = sat(remap(sn * ns_scale, lo, 1.0, 0.0, 1.0));
     if (ns <= 0.0) {
         return 0.0;
     }
     var nd_mod = 0.0;
     if (detail) {
         local_count[C_DETAIL] += 1u;
-        let dn = textureSampleLevel(detail_tex, repeat_lin, np / f.detail_period_m, 0.0);
-        let nd_fbm = dn.r * 0.625 + dn.g * 0.25 + dn.b * 0.125;
+        let dl = footprint_lod(f.detail_period_m / DETAIL_TEXELS);
+        let nd_fbm = textureSampleLevel(detail_tex, repeat_lin, np / f.detail_period_m, dl).r;
         nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
     }
     return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;

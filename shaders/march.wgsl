@@ -20,6 +20,9 @@ struct Ray {
     up: vec3<f32>,   // local up at the origin
     d: vec3<f32>,    // direction
     np: vec3<f32>,   // noise-space origin (m)
+    // The width (m) a sample at distance t stands for: cone0 + cone·t (issue 30).
+    cone0: f32,
+    cone: f32,
 };
 
 fn make_ray(px: vec2<f32>) -> Ray {
@@ -34,11 +37,17 @@ fn make_ray(px: vec2<f32>) -> Ray {
         r.d = -r.up;
         let o = r.up * (EARTH_R + r.h);
         r.np = o - f.shape_period_m * floor(o / f.shape_period_m);
+        // Parallel rays, each a map pixel wide (its north-south side).
+        r.cone0 = (f.region_north - f.region_south) / size.y * 111195.0;
+        r.cone = 0.0;
     } else {
         r.d = persp_dir(f, px);
         r.up = f.cam_up;
         r.h = f.cam_alt_m;
         r.np = f.noise_origin;
+        // A pixel's angle: the march's rows span the vertical field of view.
+        r.cone0 = 0.0;
+        r.cone = 2.0 * f.tan_half_fov / size.y;
     }
     return r;
 }
@@ -204,6 +213,7 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
             continue;
         }
         let h_e = altitude_at(r.h, mu, te);
+        footprint_m = r.cone0 + r.cone * te;
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;

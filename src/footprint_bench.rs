@@ -7,6 +7,8 @@
 //! Deterministic: every picture of a view is rendered at one fixed exposure (the product
 //! render's own metered exposure, frozen, or the one the product fixes), at frame 0's jitter.
 
+use std::path::Path;
+
 use chrono::{DateTime, Utc};
 use glam::DVec3;
 use serde::Serialize;
@@ -188,13 +190,15 @@ pub fn cases(bench_size: (u32, u32)) -> Result<Vec<MapCases>, FootprintError> {
     Ok(all)
 }
 
-/// Measure every case whose name contains `only` (all: ""); `progress` hears each view's name.
+/// Measure every case whose name contains `only` (all: ""); `progress` hears each view's name;
+/// with `pictures`, each view's pair of pictures is written there.
 pub fn run(
     r: &mut Renderer,
     sets: &[MapCases],
     only: &str,
+    pictures: Option<&Path>,
     progress: &dyn Fn(&str),
-) -> Result<Vec<Row>, RenderError> {
+) -> Result<Vec<Row>, FootprintError> {
     let mut rows = Vec::new();
     for set in sets {
         let cases: Vec<&Case> = set.cases.iter().filter(|c| c.name.contains(only)).collect();
@@ -204,7 +208,7 @@ pub fn run(
         r.set_map(&set.map);
         for c in cases {
             progress(&c.name);
-            let row = measure(r, c)?;
+            let row = measure(r, c, pictures)?;
             tracing::info!("{row:?}");
             rows.push(row);
         }
@@ -309,13 +313,23 @@ fn frozen_exposure(
 }
 
 /// One view: the product render and its supersampled twin, each also turned by [`TURN_DEG`].
-pub fn measure(r: &mut Renderer, c: &Case) -> Result<Row, RenderError> {
+/// With `pictures`, the pair is also written there ([`side_by_side`]).
+pub fn measure(r: &mut Renderer, c: &Case, pictures: Option<&Path>) -> Result<Row, FootprintError> {
     let (s, ev, how) = frozen_exposure(r, c)?;
     let (w, h) = c.size;
     let product = linear_box(&r.render(&c.view, w, h, &s)?, 1);
     let big = r.render(&c.view, w * SUPER, h * SUPER, &s)?;
     let cut_pct = 100.0 * big.stats.cut_rays as f64 / big.stats.rays.max(1) as f64;
     let sup = linear_box(&big, SUPER);
+    if let Some(dir) = pictures {
+        side_by_side(
+            &dir.join(format!("{}.png", file_name(&c.name))),
+            w,
+            h,
+            &product,
+            &sup,
+        )?;
+    }
     let (turn_product, turn_super) = match turned(&c.view, TURN_DEG) {
         Some(v) => {
             let p = linear_box(&r.render(&v, w, h, &s)?, 1);
@@ -357,6 +371,41 @@ pub fn measure(r: &mut Renderer, c: &Case) -> Result<Row, RenderError> {
         exposure: how,
         cut_pct,
     })
+}
+
+/// A view's name as a file name: letters and digits, the rest dashes.
+fn file_name(name: &str) -> String {
+    name.chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .collect()
+}
+
+/// The product picture (left) beside its box-downsampled supersampled twin (right), both from
+/// the linear RGB the table measures, sRGB-encoded: what the RMSE column compares.
+fn side_by_side(
+    path: &Path,
+    w: u32,
+    h: u32,
+    product: &[[f64; 3]],
+    sup: &[[f64; 3]],
+) -> Result<(), IngestError> {
+    let encode = |v: f64| {
+        let s = if v <= 0.003_130_8 {
+            12.92 * v
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        };
+        (255.0 * s).round().clamp(0.0, 255.0) as u8
+    };
+    let img = image::RgbaImage::from_fn(2 * w, h, |x, y| {
+        let p = if x < w {
+            product[(y * w + x) as usize]
+        } else {
+            sup[(y * w + x - w) as usize]
+        };
+        image::Rgba([encode(p[0]), encode(p[1]), encode(p[2]), 255])
+    });
+    crate::picture::save_png(path, &img)
 }
 
 fn preset_name(s: &Settings) -> &'static str {

@@ -389,6 +389,7 @@ fn noise_fills_every_slice_on_every_backend() {
         tried += 1;
         let noise = stratus::render::noise::NoiseTextures::generate(&gpu);
         let bytes = noise.read_shape(&gpu).expect("read back");
+        check_shape_stats(&gpu, &noise, &bytes);
         let side = stratus::render::noise::SHAPE_SIZE as usize;
         let slice = bytes.len() / side;
         for (z, s) in bytes.chunks_exact(slice).enumerate() {
@@ -451,4 +452,53 @@ fn frame_statistics_arrive_without_waiting() {
         r.poll_stats().is_none(),
         "the same frame was reported twice"
     );
+}
+
+/// The footprint's noise statistics (issue 30) are the carved shape value's mean, variance and
+/// bounds over each level's blocks, computed here from the RGBA8 noise itself.
+fn check_shape_stats(
+    gpu: &stratus::render::gpu::Gpu,
+    noise: &stratus::render::noise::NoiseTextures,
+    rgba: &[u8],
+) {
+    let side = stratus::render::noise::SHAPE_SIZE as usize;
+    // The carve's value per texel, as cloud.wgsl took it before footprints: the Perlin-Worley
+    // remapped by the Worley FBM.
+    let value: Vec<f32> = rgba
+        .chunks_exact(4)
+        .map(|t| {
+            let c = |i: usize| t[i] as f32 / 255.0;
+            let lo = c(1) * 0.625 + c(2) * 0.25 + c(3) * 0.125 - 1.0;
+            (c(0) - lo) / (1.0 - lo)
+        })
+        .collect();
+    for level in [0u32, 2] {
+        let stats = noise.read_shape_stats(gpu, level).expect("read back stats");
+        let (n, b) = (side >> level, 1usize << level);
+        assert_eq!(stats.len(), n * n * n);
+        let mut worst = [0f32; 4];
+        for (i, s) in stats.iter().enumerate() {
+            let (x, y, z) = (i % n, (i / n) % n, i / (n * n));
+            let mut v = Vec::with_capacity(b * b * b);
+            for dz in 0..b {
+                for dy in 0..b {
+                    for dx in 0..b {
+                        v.push(value[((z * b + dz) * side + y * b + dy) * side + x * b + dx]);
+                    }
+                }
+            }
+            let mean = v.iter().sum::<f32>() / v.len() as f32;
+            let var = v.iter().map(|a| (a - mean) * (a - mean)).sum::<f32>() / v.len() as f32;
+            let lo = v.iter().cloned().fold(f32::MAX, f32::min);
+            let hi = v.iter().cloned().fold(f32::MIN, f32::max);
+            for (k, want) in [mean, var, lo, hi].into_iter().enumerate() {
+                worst[k] = worst[k].max((s[k] - want).abs());
+            }
+        }
+        // Half floats: 0.0005 at values near 1; the variance, near 0, is finer.
+        assert!(
+            worst.iter().all(|&e| e < 0.002),
+            "shape stats level {level}: largest error (mean, var, min, max) {worst:?}"
+        );
+    }
 }

@@ -58,6 +58,10 @@ pub struct Args {
     /// With --footprint: only the views whose name contains this.
     #[arg(long, requires = "footprint", default_value = "")]
     pub views: String,
+    /// With --footprint: write each view's product picture beside its supersampled twin
+    /// (both as measured) into this folder, one PNG per view.
+    #[arg(long, requires = "footprint")]
+    pub pictures: Option<std::path::PathBuf>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -182,7 +186,11 @@ fn footprint(a: &Args, size: (u32, u32)) -> anyhow::Result<ExitCode> {
     let mut r = Renderer::new(g, &sets[0].map);
     let total = sets.iter().map(|s| s.cases.len()).sum::<usize>() as u64;
     let pb = progress_bar(total, "footprint");
-    let rows = run(&mut r, &sets, &a.views, &|what| {
+    if let Some(dir) = &a.pictures {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
+    }
+    let rows = run(&mut r, &sets, &a.views, a.pictures.as_deref(), &|what| {
         pb.set_message(what.to_string());
         pb.inc(1);
     })?;

@@ -151,14 +151,16 @@ impl MarchPass {
                 address_mode_w: mode,
                 mag_filter: wgpu::FilterMode::Linear,
                 min_filter: wgpu::FilterMode::Linear,
+                // The noise statistics are read at the level of a sample's footprint.
+                mipmap_filter: wgpu::MipmapFilterMode::Linear,
                 ..Default::default()
             })
         };
         let clamp_lin = sampler(wgpu::AddressMode::ClampToEdge, "clamp");
         let repeat_lin = sampler(wgpu::AddressMode::Repeat, "repeat");
         let (shape, detail) = (
-            noise.shape.create_view(&Default::default()),
-            noise.detail.create_view(&Default::default()),
+            noise.shape_stats.create_view(&Default::default()),
+            noise.detail_stats.create_view(&Default::default()),
         );
         let profiles = super::profile::texture(gpu).create_view(&Default::default());
         let cells = super::cells::texture(gpu).create_view(&Default::default());

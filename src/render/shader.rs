@@ -6,6 +6,10 @@ pub const NOISE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/noise.wgsl")
 );
+pub const NOISE_STATS: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/noise_stats.wgsl")
+);
 pub const MARCH: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/cloud.wgsl"),
@@ -57,6 +61,7 @@ mod tests {
     fn shaders_validate() {
         for (name, src) in [
             ("noise", NOISE),
+            ("noise stats", NOISE_STATS),
             ("march", MARCH),
             ("section", SECTION),
             ("present", PRESENT),

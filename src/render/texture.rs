@@ -1,4 +1,4 @@
-//! Texture helpers every stage shares: a 2D or 3D texture of one level, a sampled 2D texture
+//! Texture helpers every stage shares: a 2D or 3D texture of one level (or a mipped 3D one), a sampled 2D texture
 //! the CPU fills ([`map_texture`], [`write`]).
 
 use super::gpu::Gpu;
@@ -26,11 +26,36 @@ pub fn texture_3d(
     single_level(dev, label, size, wgpu::TextureDimension::D3, format, usage)
 }
 
+/// A 3D texture with `levels` mip levels (the caller fills each).
+pub fn texture_3d_mipped(
+    dev: &wgpu::Device,
+    label: &str,
+    size: (u32, u32, u32),
+    levels: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    let dim = wgpu::TextureDimension::D3;
+    with_levels(dev, label, size, levels, dim, format, usage)
+}
+
 /// A texture of one mip level and one sample; `depth` is the array layers of a 2D texture.
 fn single_level(
     dev: &wgpu::Device,
     label: &str,
+    size: (u32, u32, u32),
+    dimension: wgpu::TextureDimension,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    with_levels(dev, label, size, 1, dimension, format, usage)
+}
+
+fn with_levels(
+    dev: &wgpu::Device,
+    label: &str,
     (width, height, depth): (u32, u32, u32),
+    levels: u32,
     dimension: wgpu::TextureDimension,
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
@@ -42,7 +67,7 @@ fn single_level(
             height,
             depth_or_array_layers: depth,
         },
-        mip_level_count: 1,
+        mip_level_count: levels,
         sample_count: 1,
         dimension,
         format,

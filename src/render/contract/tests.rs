@@ -215,6 +215,7 @@ fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
     static EXPOSURE: std::sync::OnceLock<Vec<Binding>> = std::sync::OnceLock::new();
     vec![
         ("noise", shader::NOISE, noise::BINDINGS),
+        ("noise stats", shader::NOISE_STATS, noise::STATS_BINDINGS),
         ("atmosphere", shader::ATMOSPHERE, atmosphere::BINDINGS),
         ("reproject", shader::REPROJECT, reproject::BINDINGS),
         (
@@ -407,7 +408,7 @@ fn counter_const(field: &str) -> &'static str {
 /// The structs shared by every stage that declares them.
 fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
     use crate::render::exposure::{ExposureParams, ExposureState};
-    use crate::render::noise::NoiseParams;
+    use crate::render::noise::{NoiseParams, StatsParams};
     use crate::render::reproject::ReprojectParams;
     use crate::render::scene::ShadowParams;
     use crate::render::section::SectionParams;
@@ -441,6 +442,11 @@ fn shared_structs() -> Vec<(&'static str, Vec<Field>, usize)> {
             NoiseParams::WGSL_NAME,
             NoiseParams::fields(),
             std::mem::size_of::<NoiseParams>(),
+        ),
+        (
+            StatsParams::WGSL_NAME,
+            StatsParams::fields(),
+            std::mem::size_of::<StatsParams>(),
         ),
         (
             ReprojectParams::WGSL_NAME,
