@@ -363,6 +363,35 @@ mod tests {
         assert!(!text.contains("mean_wind"), "{text}");
         assert_eq!(serde_json::from_str::<SeriesMeta>(&text).unwrap(), old);
         old.validate().unwrap();
+        // The motion entry: on a step with a next one, on the working grid, a sane scale.
+        let motion = |scale: f64, w: u32| StepMotion {
+            u: "m-f000.motion-u.png".into(),
+            v: "m-f000.motion-v.png".into(),
+            width: w,
+            height: 32,
+            scale,
+        };
+        let mut ok = m.clone();
+        ok.steps[0].motion = Some(motion(0.001, 64));
+        ok.validate().unwrap();
+        let back: SeriesMeta = serde_json::from_str(&serde_json::to_string(&ok).unwrap()).unwrap();
+        assert_eq!(back, ok);
+        for (k, mo, says) in [
+            (1, motion(0.001, 64), "steps[1].motion: the last step"),
+            (
+                0,
+                motion(0.001, 32),
+                "steps[0].motion: 32x32 is not the motion grid",
+            ),
+            (0, motion(0.0, 64), "steps[0].motion.scale"),
+            (0, motion(f64::NAN, 64), "steps[0].motion.scale"),
+            (0, motion(1.0, 64), "steps[0].motion.scale"),
+        ] {
+            let mut bad = m.clone();
+            bad.steps[k].motion = Some(mo);
+            let e = bad.validate().unwrap_err();
+            assert!(e.contains(says), "{e}");
+        }
         let mut bad = m;
         bad.steps.clear();
         assert!(bad.validate().unwrap_err().contains("steps"));

@@ -95,7 +95,10 @@ pub fn write(motion: &Motion, paths: (&Path, &Path)) -> Result<StepMotion> {
 
 /// Open the motion image `path` and check its header against `m` (size, 16-bit RGBA)
 /// before any pixel is decoded; the fault is a phrase after the file's name.
-fn open(path: &Path, m: &StepMotion) -> std::result::Result<png::Reader<BufReader<std::fs::File>>, String> {
+fn open(
+    path: &Path,
+    m: &StepMotion,
+) -> std::result::Result<png::Reader<BufReader<std::fs::File>>, String> {
     let f = crate::input::open_regular(path).map_err(|e| e.to_string())?;
     let mut dec = png::Decoder::new_with_limits(
         BufReader::new(f),
@@ -204,7 +207,10 @@ mod tests {
         let motion = Motion {
             layers: vec![lm(LayerKind::Low, 0.0), lm(LayerKind::High, 2.0)],
         };
-        let (pu, pv) = (dir.path().join("m.motion-u.png"), dir.path().join("m.motion-v.png"));
+        let (pu, pv) = (
+            dir.path().join("m.motion-u.png"),
+            dir.path().join("m.motion-v.png"),
+        );
         let entry = write(&motion, (&pu, &pv)).unwrap();
         assert_eq!((entry.width, entry.height), (12, 8));
         check(dir.path(), &entry).unwrap();
