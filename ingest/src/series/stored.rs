@@ -38,11 +38,14 @@ pub fn motion_paths(png: &Path) -> (PathBuf, PathBuf) {
     )
 }
 
+/// One layer's guarded motion, east and south (map pixels per interval).
+type Field = (Vec<f32>, Vec<f32>);
+
 /// `motion`'s guarded fields as the two images' big-endian RGBA samples, with their working
 /// grid's size and the scale (map pixels per unit: the largest displacement fills the range).
 fn encode(motion: &Motion) -> (usize, usize, f64, [Vec<u8>; 2]) {
     let (w, h) = motion.layers.first().map_or((1, 1), |l| (l.u.w, l.u.h));
-    let fields: Vec<(usize, (Vec<f32>, Vec<f32>))> = motion
+    let fields: Vec<(usize, Field)> = motion
         .layers
         .iter()
         .map(|l| (l.channel, l.guarded_px()))
@@ -52,7 +55,7 @@ fn encode(motion: &Motion) -> (usize, usize, f64, [Vec<u8>; 2]) {
         .flat_map(|(_, (u, v))| u.iter().chain(v))
         .fold(0.0f32, |m, x| m.max(x.abs()));
     let scale = (f64::from(most) / 32767.0).max(1e-4);
-    let image = |pick: fn(&(Vec<f32>, Vec<f32>)) -> &Vec<f32>| {
+    let image = |pick: fn(&Field) -> &Vec<f32>| {
         let mut out = Vec::with_capacity(w * h * 8);
         for k in 0..w * h {
             for c in 0..4 {
