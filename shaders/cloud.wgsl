@@ -17,7 +17,8 @@
 @group(1) @binding(4) var st_kind: texture_2d<f32>;      // genus code, nearest texel
 @group(1) @binding(5) var st_wind: texture_2d<f32>;      // (u, v) high in RG, middle in BA, m/s
 // Two steps blended (render::blend): the later step's coverage, and per layer (three blocks
-// side by side on the structure lattice) both steps' winds (u0, v0, u1, v1), m/s.
+// side by side on the motion's working grid) the guarded motion over the interval, (east,
+// south) in map uv.
 @group(1) @binding(6) var weather_next: texture_2d<f32>;
 @group(1) @binding(7) var blend_motion: texture_2d<f32>;
 

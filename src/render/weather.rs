@@ -36,7 +36,7 @@ pub struct WeatherMap {
     pub coarse_h: usize,
     /// Per-pixel base, top, type and wind (a 1×1 stand-in for maps without them).
     pub structure: StructureTextures,
-    /// The later step and both steps' winds when two steps are blended (render::blend).
+    /// The later step and the motion between the steps when two are blended (render::blend).
     pub blend: Blend,
 }
 
