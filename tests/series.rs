@@ -94,7 +94,7 @@ fn the_real_steps_round_trip_as_a_series() {
     assert_eq!(st[1]["winds"]["u"], "na-f006.wind-u.png");
     assert_eq!(st[1]["winds"]["v"], "na-f006.wind-v.png");
     assert_eq!(st[0]["motion"]["u"], "na-f000.motion-u.png");
-    assert_eq!(st[0]["motion"]["width"], 342);
+    assert_eq!(st[0]["motion"]["width"], 256);
     assert!(st[1].get("motion").is_none());
     let kinds: Vec<&str> = series["layers"]
         .as_array()
