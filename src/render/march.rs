@@ -60,7 +60,7 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_MAP, 3, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 4, Resource::Texture2d { filterable: false }),
     b(GROUP_MAP, 5, Resource::Texture2d { filterable: true }),
-    // Two steps blended (render::blend): the later step's coverage, both steps' winds.
+    // Two steps blended (render::blend): the later step's coverage, the motion between them.
     b(GROUP_MAP, 6, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 7, Resource::Texture2d { filterable: true }),
     b(GROUP_TARGET, 0, Resource::StorageTexture(CLOUD_FORMAT, 2)),
@@ -207,7 +207,7 @@ impl MarchPass {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (w, c) = (view(&weather.texture), view(&weather.coarse));
         let st = weather.structure.textures.each_ref().map(view);
-        let (next, wind) = (view(&weather.blend.next), view(&weather.blend.wind));
+        let (next, motion) = (view(&weather.blend.next), view(&weather.blend.motion));
         use wgpu::BindingResource as R;
         bind(
             &gpu.device,
@@ -221,7 +221,7 @@ impl MarchPass {
                 R::TextureView(&st[2]),
                 R::TextureView(&st[3]),
                 R::TextureView(&next),
-                R::TextureView(&wind),
+                R::TextureView(&motion),
             ],
         )
     }

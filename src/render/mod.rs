@@ -234,12 +234,18 @@ impl Renderer {
     }
 
     /// Hold two forecast steps of one series, `a` before `b`, and blend them at each frame's
-    /// time (render::blend); [`set_map`](Self::set_map) goes back to one map. Only these two
-    /// steps' textures are on the GPU.
-    pub fn set_pair(&mut self, a: &CloudMap, b: &CloudMap) -> Result<(), RenderError> {
+    /// time along `motion`, the guarded motion between them (render::blend; `Series::motion`);
+    /// [`set_map`](Self::set_map) goes back to one map. Only these two steps' textures are on
+    /// the GPU.
+    pub fn set_pair(
+        &mut self,
+        a: &CloudMap,
+        b: &CloudMap,
+        motion: &stratus_ingest::series::motion::Motion,
+    ) -> Result<(), RenderError> {
         let kept = self
             .weather
-            .set_pair(&self.gpu, a, b)
+            .set_pair(&self.gpu, (a, b), motion)
             .map_err(RenderError::BadSetting)?;
         if !kept {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);

@@ -1,7 +1,10 @@
 //! A CloudMap series: the maps of several forecast steps of one run (DESIGN §9), their series
 //! sidecar ([`meta`]), which input files make one ([`inputs`]), how it is written ([`write`]),
 //! and the weather at any moment of it ([`Series::at`]: the two steps around the moment
-//! carried along their layer winds and blended, [`advect`]).
+//! moved along the guarded motion between them and blended, [`motion`]; the motion stored
+//! with the series, [`stored`], or for a series written before it, estimated from the two
+//! steps). The layer-wind blend ([`advect`]) stays as the reference `verify-interpolation`
+//! and `verify-advection` compare with.
 //!
 //! [`Series::load`] reads the series sidecar and checks every step's sidecar, PNG and
 //! structure images are there and match the series; step maps themselves are decoded only
@@ -12,6 +15,7 @@ pub mod check;
 pub mod inputs;
 pub mod meta;
 pub mod motion;
+pub mod stored;
 pub mod winds;
 pub mod write;
 
@@ -113,6 +117,9 @@ impl Series {
             if let Some(w) = &s.winds {
                 images.extend([dir.join(&w.u), dir.join(&w.v)]);
             }
+            if let Some(mo) = &s.motion {
+                images.extend([dir.join(&mo.u), dir.join(&mo.v)]);
+            }
             for p in &images {
                 match std::fs::metadata(p) {
                     Ok(m) if m.is_file() => {}
@@ -126,7 +133,17 @@ impl Series {
                     Err(_) => return Err(at(format!("{}: missing", shown(p)))),
                 }
             }
+            if let Some(mo) = &s.motion {
+                stored::check(dir, mo).map_err(at)?;
+            }
             step_metas.push(m);
+        }
+        let n = meta.steps.len();
+        if meta.steps[..n - 1].iter().any(|s| s.motion.is_none()) {
+            tracing::info!(
+                "{}: no motion images (a series sidecar from before issue 31): each interval's motion is estimated from its two steps when first needed",
+                shown(path)
+            );
         }
         Ok(Series {
             path: path.to_path_buf(),
@@ -179,9 +196,44 @@ impl Series {
         })
     }
 
+    /// The guarded motion from step `k` to step `k + 1` (their maps `a`, `b`): the stored one
+    /// ([`stored::read`]), else — a series sidecar from before issue 31 — estimated from `a`
+    /// and `b` ([`motion::estimate`], seconds for a large map), in the stored form either way
+    /// ([`motion::Motion::baked`]).
+    pub fn motion(&self, k: usize, a: &CloudMap, b: &CloudMap) -> Result<motion::Motion> {
+        let steps = &self.meta.steps;
+        let (Some(s0), Some(s1)) = (steps.get(k), steps.get(k + 1)) else {
+            return Err(IngestError::series(
+                &self.path,
+                format!("no interval after step {k} (it has {} steps)", steps.len()),
+            ));
+        };
+        if let Some(m) = &s0.motion {
+            return stored::read(folder(&self.path), m, &self.meta).map_err(|e| {
+                IngestError::series(
+                    &self.path,
+                    format!("step {}: {e}", meta::show_hour(s0.forecast_hour)),
+                )
+            });
+        }
+        let interval = (s1.valid_time - s0.valid_time).num_milliseconds() as f64 / 1000.0;
+        let t = std::time::Instant::now();
+        let m = motion::estimate(a, b, interval)?.baked();
+        tracing::debug!(
+            "motion {} → {} estimated in {:.1} s",
+            meta::show_hour(s0.forecast_hour),
+            meta::show_hour(s1.forecast_hour),
+            t.elapsed().as_secs_f64()
+        );
+        Ok(m)
+    }
+
     /// The weather at `time`: the step map where a step is valid then; between two steps their
-    /// semi-Lagrangian blend ([`blend`]); before the first or after the last step that step
-    /// unchanged (the forecast says nothing beyond, so the weather is held).
+    /// blend along the guarded motion between them ([`Series::motion`], [`motion::blend`]:
+    /// growth and decay stay a cross-fade); before the first or after the last step that step
+    /// unchanged. Held, not extrapolated along the last motion: the forecast says nothing
+    /// beyond its steps, and a motion estimated over one interval carried further would move
+    /// cloud that the next step (there is none) might have cleared.
     pub fn at(&self, time: DateTime<Utc>) -> Result<CloudMap> {
         let steps = &self.meta.steps;
         let after = steps.iter().position(|s| s.valid_time > time);
@@ -211,15 +263,20 @@ impl Series {
         let interval = (t1 - t0).num_milliseconds() as f64 / 1000.0;
         let w = (time - t0).num_milliseconds() as f64 / 1000.0 / interval;
         let (a, b) = (self.step_map(k)?, self.step_map(k + 1)?);
-        blend(&a, &b, w, interval).map_err(|e| IngestError::series(&self.path, e))
+        let m = self.motion(k, &a, &b)?;
+        motion::blend(&a, &b, w, interval, &m).map_err(|e| IngestError::series(&self.path, e))
     }
 
-    /// Every file the series reads: its step sidecars, PNGs, structure and ground images.
+    /// Every file the series reads: its step sidecars, PNGs, structure, ground and motion
+    /// images.
     pub fn files(&self) -> Vec<PathBuf> {
         let dir = folder(&self.path);
         let mut v = Vec::new();
         for (s, m) in self.meta.steps.iter().zip(&self.step_metas) {
             let sidecar = dir.join(&s.map);
+            if let Some(mo) = &s.motion {
+                v.extend([dir.join(&mo.u), dir.join(&mo.v)]);
+            }
             v.push(m.image_path(&sidecar));
             v.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
             if let Some(g) = &m.ground {
