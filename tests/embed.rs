@@ -336,6 +336,25 @@ fn misuse_is_a_typed_error() {
     let unreadable = tex(SIZE, DEPTH, U::RENDER_ATTACHMENT);
     let e = try_frame(&mut clouds, &host.color_view, &unreadable, &cam);
     assert!(matches!(e, Err(EmbedError::Usage { .. })), "{e:?}");
+    // A multisampled depth buffer (to be resolved first).
+    let msaa = dev
+        .create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d {
+                width: SIZE,
+                height: SIZE,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 4,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH,
+            usage: U::RENDER_ATTACHMENT | U::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&Default::default());
+    let e = try_frame(&mut clouds, &host.color_view, &msaa, &cam);
+    assert!(matches!(e, Err(EmbedError::Multisampled { .. })), "{e:?}");
     // A camera with NaN in it, and a projection of another aspect.
     let mut nan = cam;
     nan.view.w_axis.y = f32::NAN;

@@ -355,12 +355,17 @@ pub fn terrain(n: u32, half: f32, sun: Vec3) -> Vec<Vertex> {
                 let normal = if normal.y < 0.0 { -normal } else { normal };
                 let shade = 0.2 + 0.8 * normal.dot(sun).max(0.0);
                 let hgt = (tri[0].y + tri[1].y + tri[2].y) / 3.0;
-                let base = if hgt < 380.0 {
-                    [0.10, 0.22, 0.07]
-                } else if hgt < 650.0 {
-                    [0.22, 0.19, 0.10]
+                // Green low, brown, grey high: blended, so colour does not step along edges.
+                let mix = |a: [f32; 3], b: [f32; 3], t: f32| {
+                    let t = t.clamp(0.0, 1.0);
+                    [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * t)
+                };
+                let (green, brown, grey) =
+                    ([0.10, 0.22, 0.07], [0.22, 0.19, 0.10], [0.35, 0.34, 0.32]);
+                let base = if hgt < 600.0 {
+                    mix(green, brown, (hgt - 350.0) / 250.0)
                 } else {
-                    [0.35, 0.34, 0.32]
+                    mix(brown, grey, (hgt - 600.0) / 250.0)
                 };
                 for p in tri {
                     v.push(Vertex {

@@ -93,7 +93,7 @@ impl HostCamera {
     /// Stratus' camera for a `width`×`height` target, after checking that the matrices are
     /// finite, the view rigid, the projection a symmetric perspective of the target's aspect,
     /// and near/far what the projection says for the convention.
-    pub(super) fn to_stratus(&self, width: u32, height: u32) -> Result<Camera, EmbedError> {
+    pub fn to_stratus(&self, width: u32, height: u32) -> Result<Camera, EmbedError> {
         let focal = self.check_projection(width, height)?;
         let v = self.view.as_dmat4();
         if !v.is_finite() {
