@@ -26,7 +26,8 @@ struct EmbedParams {
     tone: u32,
     // 1: resolve the march's jitter by a 3×3 mean over pixels at a like host depth.
     resolve: u32,
-    _pad0: u32,
+    // 1: Stratus' own sky (the march's background) where the host drew nothing.
+    sky: u32,
     _pad1: u32,
     _pad2: u32,
 };
@@ -44,6 +45,8 @@ const FAR_NONE: f32 = 3.0e38;
 @group(2) @binding(0) var cloud: texture_2d<f32>;
 @group(2) @binding(1) var<storage, read> far_in: array<f32>;
 @group(2) @binding(2) var<storage, read> exposure: ExposureState;
+// The background behind each ray (march.wgsl `out_scene`): Stratus' sky, for `sky`.
+@group(2) @binding(3) var scene: texture_2d<f32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn far_main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -116,6 +119,14 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     var scale = p.exposure_mul;
     if (p.stratus_exposure != 0u) {
         scale *= exposure.value;
+    }
+    if (p.sky != 0u && far_in[u32(at.y) * p.width + u32(at.x)] >= FAR_NONE) {
+        // Where the host drew nothing: the cloud over Stratus' sky, replacing the host's colour.
+        var sky = (c.rgb + textureLoad(scene, at, 0).rgb * (1.0 - c.a)) * scale;
+        if (p.tone != 0u) {
+            sky = embed_aces(sky);
+        }
+        return vec4<f32>(sky, 1.0);
     }
     var rgb = c.rgb * scale;
     if (p.tone != 0u) {

@@ -264,6 +264,20 @@ fn nothing_is_made_on_the_frame_path() {
     assert_eq!(clouds.renderer().made().targets, 2);
     let resized = clouds.creations();
     assert_eq!(resized.textures, after_first.textures + 2);
+    // Stratus' own sky where the host drew nothing (its depth buffer left clear): every pixel
+    // is written, opaque, and the frame made nothing either.
+    clouds.sky = true;
+    let mut enc = bigger.device.create_command_encoder(&Default::default());
+    clouds
+        .encode(&mut enc, &frame(&bigger, &cam2))
+        .expect("a frame with Stratus' sky");
+    bigger.queue.submit([enc.finish()]);
+    let px = bigger.read_color();
+    assert!(
+        px.iter().all(|p| p[3] == 1.0 && p[2] > 0.0),
+        "the sky everywhere"
+    );
+    assert_eq!(clouds.creations(), resized);
     // The embedding reads nothing back: its source never maps a buffer.
     let src = include_str!("../src/render/embed/mod.rs").to_string()
         + include_str!("../src/render/embed/stage.rs");

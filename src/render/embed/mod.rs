@@ -109,6 +109,9 @@ pub struct EmbedOptions {
     pub exposure: CloudExposure,
     /// Stratus' own terrain under its clouds' shadows (the host draws its own: off).
     pub terrain: bool,
+    /// Stratus' own sky (Sun, Moon, stars, the physical atmosphere) where the host's depth
+    /// buffer holds nothing (the host draws its own: off).
+    pub sky: bool,
 }
 
 impl Default for EmbedOptions {
@@ -117,6 +120,7 @@ impl Default for EmbedOptions {
             preset: Preset::Balanced,
             exposure: CloudExposure::Stratus,
             terrain: false,
+            sky: false,
         }
     }
 }
@@ -150,6 +154,8 @@ pub struct EmbeddedClouds {
     /// The frame's settings; the time is each frame's. Change them freely between frames.
     pub settings: Settings,
     pub exposure: CloudExposure,
+    /// Stratus' sky where the host drew nothing ([`EmbedOptions::sky`]).
+    pub sky: bool,
     made: Creations,
 }
 
@@ -185,6 +191,7 @@ impl EmbeddedClouds {
             stage,
             settings,
             exposure: options.exposure,
+            sky: options.sky,
             made: Creations::default(),
         })
     }
@@ -251,14 +258,15 @@ impl EmbeddedClouds {
             return Err(RenderError::BadSetting(format!("exposure scale {mul}")).into());
         }
         // A display-referred (8-bit sRGB) target takes the cloud tone-mapped; a float one linear.
-        let tone = !is_float(frame.color.texture().format());
-        let resolve = self.settings.march.shortcuts.jitter;
-        self.stage.encode_far(
-            &r.gpu,
-            enc,
-            &frame.camera.depth_model(),
-            (mul, stratus, tone, resolve),
-        );
+        let look = stage::Look {
+            exposure_mul: mul,
+            stratus_exposure: stratus,
+            tone: !is_float(frame.color.texture().format()),
+            resolve: self.settings.march.shortcuts.jitter,
+            sky: self.sky,
+        };
+        self.stage
+            .encode_far(&r.gpu, enc, &frame.camera.depth_model(), look);
         r.encode_light(enc, &uniforms, &self.settings);
         r.encode_march(enc, &uniforms, &step, false, size);
         if stratus {
@@ -287,11 +295,12 @@ impl EmbeddedClouds {
         self.made.texture_views += 2;
         self.made.buffers += 1;
         self.made.bind_groups += 3;
-        let cloud = t.frame.cloud.clone();
+        let (cloud, scene) = (t.frame.cloud.clone(), t.frame.scene.clone());
         *targets = Some(t);
         r.made.targets += 1;
         let exposure = r.exposure.state.clone();
-        self.stage.bind_composite(&r.gpu, &cloud, &exposure);
+        self.stage
+            .bind_composite(&r.gpu, (&cloud, &scene), &exposure);
     }
 
     /// The exposure stage over the frame the march wrote (Stratus' own exposure).

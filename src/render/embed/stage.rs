@@ -26,7 +26,7 @@ crate::gpu_struct! {
         pub stratus_exposure: u32,
         pub tone: u32,
         pub resolve: u32,
-        pub _pad0: u32,
+        pub sky: u32,
         pub _pad1: u32,
         pub _pad2: u32,
     }
@@ -41,6 +41,16 @@ pub struct Creations {
     pub texture_views: u32,
     pub bind_groups: u32,
     pub pipelines: u32,
+}
+
+/// How the composite shows the cloud (render::embed::EmbeddedClouds' choices for a frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Look {
+    pub exposure_mul: f32,
+    pub stratus_exposure: bool,
+    pub tone: bool,
+    pub resolve: bool,
+    pub sky: bool,
 }
 
 /// What lives as long as the target size.
@@ -135,6 +145,15 @@ impl EmbedStage {
                 ),
                 entry(1, fs, storage(true)),
                 entry(2, fs, storage(true)),
+                entry(
+                    3,
+                    fs,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
             ],
         );
         let params = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -270,30 +289,34 @@ impl EmbedStage {
         self.sized.as_ref().map(|s| &s.far)
     }
 
-    /// The composite's group over the march's cloud texture and the exposure stage's state:
-    /// made with the size's targets.
+    /// The composite's group over the march's cloud and scene textures and the exposure
+    /// stage's state: made with the size's targets.
     pub(super) fn bind_composite(
         &mut self,
         gpu: &Gpu,
-        cloud: &wgpu::Texture,
+        (cloud, scene): (&wgpu::Texture, &wgpu::Texture),
         exposure: &wgpu::Buffer,
     ) {
         let Some(s) = self.sized.as_mut() else {
             return;
         };
-        let view = cloud.create_view(&Default::default());
+        let (cv, sv) = (
+            cloud.create_view(&Default::default()),
+            scene.create_view(&Default::default()),
+        );
         use wgpu::BindingResource as R;
         s.composite_bind = Some(bind(
             &gpu.device,
             "embed: composite",
             &self.composite_layout,
             [
-                R::TextureView(&view),
+                R::TextureView(&cv),
                 R::Buffer(s.far.as_entire_buffer_binding()),
                 R::Buffer(exposure.as_entire_buffer_binding()),
+                R::TextureView(&sv),
             ],
         ));
-        self.made.texture_views += 1;
+        self.made.texture_views += 2;
         self.made.bind_groups += 1;
     }
 
@@ -343,7 +366,7 @@ impl EmbedStage {
         gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
         depth: &DepthModel,
-        (exposure_mul, stratus_exposure, tone, resolve): (f32, bool, bool, bool),
+        look: Look,
     ) {
         let Some(s) = self.sized.as_ref() else {
             return;
@@ -361,10 +384,11 @@ impl EmbedStage {
             fy: depth.fy,
             cx: 0.0,
             cy: 0.0,
-            exposure_mul,
-            stratus_exposure: u32::from(stratus_exposure),
-            tone: u32::from(tone),
-            resolve: u32::from(resolve),
+            exposure_mul: look.exposure_mul,
+            stratus_exposure: u32::from(look.stratus_exposure),
+            tone: u32::from(look.tone),
+            resolve: u32::from(look.resolve),
+            sky: u32::from(look.sky),
             ..Default::default()
         };
         debug_assert_eq!(EmbedParams::WGSL_NAME, "EmbedParams");
