@@ -4,12 +4,13 @@
 //! clouds are marched up to the host's depth and blended over its colour.
 //!
 //! `cargo run --release --example embed -- --out embed.png [--size 640x360] [--map m.json]
-//!  [--frames N] [--compare]`
+//!  [--frames N] [--compare] [--sky]`
 //!
 //! Without `--map`, a made-up broken low deck (1.4–2.2 km) over the host's hills near 47°N 8°E.
 //! `--frames N` times N embedded frames; `--compare` also times Stratus' own frame
 //! (`Renderer::encode`, what `stratus render` records, without its read-back) at the same view
-//! and size on the same kind of device.
+//! and size on the same kind of device. `--sky`: Stratus' own sky where the host drew nothing
+//! (beyond its 30 km of terrain), instead of the host's flat blue.
 
 mod host;
 
@@ -43,6 +44,7 @@ struct Args {
     map: Option<PathBuf>,
     frames: u32,
     compare: bool,
+    sky: bool,
 }
 
 fn args() -> anyhow::Result<Args> {
@@ -52,6 +54,7 @@ fn args() -> anyhow::Result<Args> {
         map: None,
         frames: 1,
         compare: false,
+        sky: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -61,6 +64,7 @@ fn args() -> anyhow::Result<Args> {
             "--map" => a.map = Some(value()?.into()),
             "--frames" => a.frames = value()?.parse().context("--frames")?,
             "--compare" => a.compare = true,
+            "--sky" => a.sky = true,
             "--size" => {
                 let v = value()?;
                 let (w, h) = v.split_once('x').ok_or_else(|| anyhow!("--size WxH"))?;
@@ -145,6 +149,7 @@ fn main() -> anyhow::Result<()> {
         },
         EmbedOptions {
             exposure: CloudExposure::Stratus,
+            sky: a.sky,
             ..Default::default()
         },
     )?;
