@@ -426,3 +426,22 @@ fn misuse_is_a_typed_error() {
     assert!(px.iter().all(|p| p.iter().all(|v| v.is_finite())));
     assert!(px.iter().any(|p| p[3] > 0.0));
 }
+
+/// A host that asked for WebGPU's default limits (not its adapter's) gets the clouds too.
+#[test]
+fn a_device_with_default_limits_takes_the_clouds() {
+    let (device, queue) = host::open_devices_with(1, Some(wgpu::Limits::default()))
+        .expect("a device with the default limits")
+        .remove(0);
+    let host = Host::new(device, queue, (SIZE, SIZE), HDR, DEPTH);
+    let mut clouds = embedded(&host);
+    let cam = camera(DepthConvention::Standard);
+    let mut enc = host.device.create_command_encoder(&Default::default());
+    host.draw(&mut enc, cam.view_projection(), cam.depth, &[], [0.0; 3]);
+    clouds
+        .encode(&mut enc, &frame(&host, &cam))
+        .expect("a frame");
+    host.queue.submit([enc.finish()]);
+    let px = host.read_color();
+    assert!(px.iter().any(|p| p[3] > 0.0 && p[1] > 0.0), "cloud drawn");
+}

@@ -56,6 +56,14 @@ pub fn open_device() -> Result<(wgpu::Device, wgpu::Queue), String> {
 
 /// `n` devices on one adapter of one instance (tests: a texture of another device).
 pub fn open_devices(n: usize) -> Result<Vec<(wgpu::Device, wgpu::Queue)>, String> {
+    open_devices_with(n, None)
+}
+
+/// Like [`open_devices`] with the given limits (`None`: the adapter's).
+pub fn open_devices_with(
+    n: usize,
+    limits: Option<wgpu::Limits>,
+) -> Result<Vec<(wgpu::Device, wgpu::Queue)>, String> {
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
     if std::env::var_os("WGPU_BACKEND").is_none() {
         desc.backends = wgpu::Backends::PRIMARY;
@@ -66,7 +74,7 @@ pub fn open_devices(n: usize) -> Result<Vec<(wgpu::Device, wgpu::Queue)>, String
             .map_err(|e| format!("no adapter: {e}"))?;
     let desc = wgpu::DeviceDescriptor {
         label: Some("host"),
-        required_limits: adapter.limits(),
+        required_limits: limits.unwrap_or_else(|| adapter.limits()),
         ..Default::default()
     };
     (0..n)
