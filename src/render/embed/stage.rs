@@ -5,7 +5,6 @@
 //! group per host depth texture. Every creation is counted ([`Creations`]).
 
 use super::camera::DepthModel;
-use crate::render::contract::GpuStruct;
 use crate::render::pipeline::bind;
 use crate::render::{shader, Gpu};
 
@@ -391,7 +390,6 @@ impl EmbedStage {
             sky: u32::from(look.sky),
             ..Default::default()
         };
-        debug_assert_eq!(EmbedParams::WGSL_NAME, "EmbedParams");
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -434,5 +432,37 @@ impl EmbedStage {
         pass.set_bind_group(0, &self.params_bind, &[]);
         pass.set_bind_group(2, bind, &[]);
         pass.draw(0..3, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::contract::GpuStruct;
+
+    /// `EmbedParams` is laid out alike in Rust and in embed.wgsl: each field's name and offset,
+    /// and the struct's size (as render::contract checks the stages' shared structs).
+    #[test]
+    fn params_match_the_wgsl() {
+        let module = naga::front::wgsl::parse_str(shader::EMBED).expect("embed.wgsl parses");
+        let (members, span) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(EmbedParams::WGSL_NAME))
+            .and_then(|(_, t)| match &t.inner {
+                naga::TypeInner::Struct { members, span } => Some((members.clone(), *span)),
+                _ => None,
+            })
+            .expect("struct EmbedParams in embed.wgsl");
+        let wgsl: Vec<(String, u32)> = members
+            .iter()
+            .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+            .collect();
+        let rust: Vec<(String, u32)> = EmbedParams::fields()
+            .iter()
+            .map(|f| (f.name.to_string(), f.offset as u32))
+            .collect();
+        assert_eq!(wgsl, rust);
+        assert_eq!(span as usize, std::mem::size_of::<EmbedParams>());
     }
 }
