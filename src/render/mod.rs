@@ -17,13 +17,15 @@
 //! Around them: `settings` (a frame's settings and their validation), `targets` (the render
 //! targets, by the output size's lifetime), `frame` forms the uniforms, `camera` holds the
 //! geometry, `preset` the quality levels, `gpu` the adapter, `stats` a frame's cost,
-//! `readback` brings pictures back to the CPU.
+//! `readback` brings pictures back to the CPU. `embed` draws the clouds inside a host's own
+//! wgpu renderer (its device, camera, colour and depth: issue 33).
 
 pub mod atmosphere;
 pub mod blend;
 pub mod camera;
 pub mod cells;
 pub mod contract;
+pub mod embed;
 pub mod exposure;
 pub mod frame;
 pub mod gpu;
