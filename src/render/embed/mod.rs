@@ -201,9 +201,15 @@ impl EmbeddedClouds {
         self.renderer.set_map(map);
     }
 
-    /// Hold two forecast steps and blend them at each frame's time (render::blend).
-    pub fn set_pair(&mut self, a: &CloudMap, b: &CloudMap) -> Result<(), EmbedError> {
-        Ok(self.renderer.set_pair(a, b)?)
+    /// Hold two forecast steps and blend them at each frame's time along `motion`, the guarded
+    /// motion between them (render::blend; `Series::motion`).
+    pub fn set_pair(
+        &mut self,
+        a: &CloudMap,
+        b: &CloudMap,
+        motion: &stratus_ingest::series::motion::Motion,
+    ) -> Result<(), EmbedError> {
+        Ok(self.renderer.set_pair(a, b, motion)?)
     }
 
     /// The GPU objects made so far, the renderer's frame targets included.
