@@ -102,9 +102,7 @@ impl Scene {
             let k = match time {
                 None => Some(0),
                 Some(t) if steps.len() == 1 || t <= steps[0].valid_time => Some(0),
-                Some(t) if steps.last().is_some_and(|l| t >= l.valid_time) => {
-                    Some(steps.len() - 1)
-                }
+                Some(t) if steps.last().is_some_and(|l| t >= l.valid_time) => Some(steps.len() - 1),
                 Some(t) => steps.iter().position(|s| s.valid_time == t),
             };
             if let Some(k) = k {

@@ -77,7 +77,9 @@ impl Store {
             return Err(at("not a Zarr v3 group".into()));
         }
         if attrs.get("stratus_format") != Some(&Value::from(STORE_FORMAT)) {
-            return Err(at(format!("not a Stratus store (no {STORE_FORMAT:?} format)")));
+            return Err(at(format!(
+                "not a Stratus store (no {STORE_FORMAT:?} format)"
+            )));
         }
         let series: SeriesMeta = serde_json::from_value(attrs[SERIES_ATTR].clone())
             .map_err(|e| at(format!("{SERIES_ATTR}: {e}")))?;
@@ -156,7 +158,11 @@ impl Store {
             .ok_or_else(|| fault(&self.path, format!("no step {k}")))?
             .clone();
         let plane = |v: &Var, l: usize| -> Result<Option<Vec<u16>>> {
-            let Some(g) = v.grid.of(&meta).filter(|_| self.arrays.contains_key(v.name)) else {
+            let Some(g) = v
+                .grid
+                .of(&meta)
+                .filter(|_| self.arrays.contains_key(v.name))
+            else {
                 return Ok(None);
             };
             self.read_plane(v, k, l, &g, win(&g)).map(Some)
@@ -192,7 +198,10 @@ impl Store {
             rows: 0..h,
             cols: 0..w,
         });
-        let (cy, cx) = (a.chunks[a.chunks.len() - 2] as usize, a.chunks[a.chunks.len() - 1] as usize);
+        let (cy, cx) = (
+            a.chunks[a.chunks.len() - 2] as usize,
+            a.chunks[a.chunks.len() - 1] as usize,
+        );
         let mut keys = Vec::new();
         for y in win.rows.start / cy..win.rows.end.div_ceil(cy) {
             for x in win.cols.start / cx..win.cols.end.div_ceil(cx) {
@@ -241,7 +250,8 @@ impl Store {
         if bytes.len() as u64 > MAX_CHUNK_BYTES {
             return Err(fault(p, "damaged chunk: larger than any chunk"));
         }
-        decode_chunk(&bytes, a.dtype, a.chunk_len()).map_err(|e| fault(p, format!("damaged chunk: {e}")))
+        decode_chunk(&bytes, a.dtype, a.chunk_len())
+            .map_err(|e| fault(p, format!("damaged chunk: {e}")))
     }
 }
 
@@ -317,9 +327,20 @@ fn build_map(
             let (mut surface, mut water) = (Vec::new(), Vec::new());
             let n = gm.grid.width as usize * gm.grid.height as usize;
             for k in 0..n {
-                for name in ["surface_altitude", "land_area_fraction", "sea_ice_area_fraction", "surface_albedo", "surface_snow_amount", "cloud_condensed_water_content"] {
+                for name in [
+                    "surface_altitude",
+                    "land_area_fraction",
+                    "sea_ice_area_fraction",
+                    "surface_albedo",
+                    "surface_snow_amount",
+                    "cloud_condensed_water_content",
+                ] {
                     let v = p(name, 0).ok_or_else(|| missing(name))?[k];
-                    let into = if ground_channel(name).0 { &mut water } else { &mut surface };
+                    let into = if ground_channel(name).0 {
+                        &mut water
+                    } else {
+                        &mut surface
+                    };
                     into.extend_from_slice(&v.to_be_bytes());
                 }
             }
@@ -362,12 +383,21 @@ fn build_structure(
     let n = grid.width as usize * grid.height as usize;
     let s = MapStructure {
         grid,
-        base: (0..n).map(|k| [base[0][k], base[1][k], base[2][k], cb[k]]).collect(),
-        top: (0..n).map(|k| [top[0][k], top[1][k], top[2][k], ct[k]]).collect(),
+        base: (0..n)
+            .map(|k| [base[0][k], base[1][k], base[2][k], cb[k]])
+            .collect(),
+        top: (0..n)
+            .map(|k| [top[0][k], top[1][k], top[2][k], ct[k]])
+            .collect(),
         types: (0..n)
             .map(|k| {
                 let packed = (0..3).map(|l| (src[l][k].min(3) as u8) << (2 * l)).sum();
-                [ty[0][k].min(255) as u8, ty[1][k].min(255) as u8, ty[2][k].min(255) as u8, packed]
+                [
+                    ty[0][k].min(255) as u8,
+                    ty[1][k].min(255) as u8,
+                    ty[2][k].min(255) as u8,
+                    packed,
+                ]
             })
             .collect(),
         wind_u: (0..n).map(|k| [u[0][k], u[1][k], u[2][k]]).collect(),
@@ -381,7 +411,10 @@ fn build_structure(
         ));
     }
     if let Some(k) = (0..n).find(|&k| (0..3).any(|l| src[l][k] > 3)) {
-        return Err(fault(&store.join("cloud_base_source"), format!("pixel {k}: a code beyond 3")));
+        return Err(fault(
+            &store.join("cloud_base_source"),
+            format!("pixel {k}: a code beyond 3"),
+        ));
     }
     Ok(s)
 }

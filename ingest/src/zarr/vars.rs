@@ -81,7 +81,12 @@ pub const VARS: [Var; 16] = [
     var("sea_ice_area_fraction", Grid::Ground, false, Dtype::U16),
     var("surface_albedo", Grid::Ground, false, Dtype::U16),
     var("surface_snow_amount", Grid::Ground, false, Dtype::U16),
-    var("cloud_condensed_water_content", Grid::Ground, false, Dtype::U16),
+    var(
+        "cloud_condensed_water_content",
+        Grid::Ground,
+        false,
+        Dtype::U16,
+    ),
 ];
 
 /// The layer planes a variable has: 3 when layered, else 1.
@@ -106,19 +111,25 @@ pub fn attributes(v: &Var) -> Map<String, Value> {
         json!({"standard_name": std, "long_name": long, "units": "m s-1",
                "scale_factor": 0.01, "add_offset": -327.68})
     };
-    let frac = |std: &str, long: &str| {
-        json!({"standard_name": std, "long_name": long, "units": "1", "scale_factor": fraction})
-    };
+    let frac = |std: &str, long: &str| json!({"standard_name": std, "long_name": long, "units": "1", "scale_factor": fraction});
     let v = match v.name {
         "coverage" => frac(
             "cloud_area_fraction_in_atmosphere_layer",
             "cloud cover of the layer (critical-humidity formula)",
         ),
-        "total_coverage" => frac("cloud_area_fraction", "total cloud cover (max of the layers)"),
+        "total_coverage" => frac(
+            "cloud_area_fraction",
+            "total cloud cover (max of the layers)",
+        ),
         "cloud_base" => altitude("cloud_base_altitude", "cloud base of the layer"),
         "cloud_top" => altitude("cloud_top_altitude", "cloud top of the layer"),
-        "convective_cloud_base" => altitude("convective_cloud_base_altitude", "GFS convective cloud base"),
-        "convective_cloud_top" => altitude("convective_cloud_top_altitude", "GFS convective cloud top"),
+        "convective_cloud_base" => altitude(
+            "convective_cloud_base_altitude",
+            "GFS convective cloud base",
+        ),
+        "convective_cloud_top" => {
+            altitude("convective_cloud_top_altitude", "GFS convective cloud top")
+        }
         "cloud_type" => {
             let codes: Vec<u8> = (0..=CloudType::MAX_CODE).collect();
             let names: Vec<&str> = std::iter::once("none")

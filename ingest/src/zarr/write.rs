@@ -73,8 +73,9 @@ fn ingest_steps(
     let inputs: Vec<&Path> = steps.iter().map(|s| s.path.as_path()).collect();
     ensure_not_input(out, &inputs)?;
     let stage = StagingDir::create(out)?;
-    let stem = out.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-    let png = stage.path().join(format!("{stem}.png"));
+    // One name in every store, whatever the store is called: its steps' sidecars (kept in
+    // the group's attributes) name `step-fHHH.png`.
+    let png = stage.path().join("step.png");
     let (sidecar, _) = write_series(&png, steps, select, opts, progress)?;
     let series = Series::load(&sidecar)?;
     Ok((stage, series))
@@ -193,7 +194,7 @@ fn append_fault(store: &Store, new: &Series) -> Option<String> {
     let shape = |m: &CloudMapMeta| {
         (
             m.structure_grid.filter(|_| !m.extra_images.is_empty()),
-            m.ground.as_ref().map(|g| (g.grid, g.fields.clone())),
+            m.ground.as_ref().map(|g| g.grid),
         )
     };
     if shape(&store.steps[0]) != shape(&new.step_metas[0]) {
@@ -223,9 +224,13 @@ fn chunk_keys(g: &StructureGrid) -> Vec<(usize, usize)> {
 fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
     let c = CHUNK_SIDE as usize;
     for v in &VARS {
-        let Some(g) = v.grid.of(&map.meta) else { continue };
+        let Some(g) = v.grid.of(&map.meta) else {
+            continue;
+        };
         for l in 0..planes(v) {
-            let Some(plane) = vars::extract(map, v, l) else { continue };
+            let Some(plane) = vars::extract(map, v, l) else {
+                continue;
+            };
             let w = g.width as usize;
             chunk_keys(&g).par_iter().try_for_each(|&(y, x)| {
                 let mut vals = vec![0u64; c * c];
@@ -297,9 +302,15 @@ fn write_metadata(
 ) -> Result<()> {
     let json_bytes = |v: &Value| serde_json::to_vec_pretty(v).unwrap_or_default();
     for (name, a) in array_metas(series, metas) {
-        put(&store.join(name).join("zarr.json"), &json_bytes(&a.to_json()))?;
+        put(
+            &store.join(name).join("zarr.json"),
+            &json_bytes(&a.to_json()),
+        )?;
     }
-    put(&store.join("zarr.json"), &json_bytes(&group_json(series, metas)))
+    put(
+        &store.join("zarr.json"),
+        &json_bytes(&group_json(series, metas)),
+    )
 }
 
 /// The arrays of a store of `metas` (data variables the first step has, and coordinates).
@@ -315,7 +326,12 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
             shape: vec![n],
             chunks: vec![chunk],
             dtype,
-            dims: vec![if name == "forecast_period" { "time" } else { name }.to_string()],
+            dims: vec![if name == "forecast_period" {
+                "time"
+            } else {
+                name
+            }
+            .to_string()],
             attributes: vars::coordinate_attributes(name, &units),
         };
         (name.to_string(), a)
@@ -333,7 +349,9 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
         }
     }
     for var in &VARS {
-        let Some(g) = var.grid.of(first) else { continue };
+        let Some(g) = var.grid.of(first) else {
+            continue;
+        };
         if var.grid == Grid::Structure && first.extra_images.is_empty() {
             continue;
         }
