@@ -28,9 +28,9 @@ use super::vars::{ground_channel, planes, Grid, Var, VARS};
 use super::{fault, Store, SERIES_ATTR, STEPS_ATTR, STORE_FORMAT};
 
 /// Largest `zarr.json` read (the group's holds every step's sidecar).
-const MAX_META_BYTES: u64 = 256 << 20;
+pub const MAX_META_BYTES: u64 = 256 << 20;
 /// Largest chunk file read: a whole chunk's samples with gzip's worst case, and then some.
-const MAX_CHUNK_BYTES: u64 = 4 << 20;
+pub const MAX_CHUNK_BYTES: u64 = 4 << 20;
 
 /// What reading has cost so far.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
