@@ -101,6 +101,9 @@ pub fn create(
         return Err(e);
     }
     let (stage, series) = ingest_steps(out, steps, select, opts, progress)?;
+    if let Some(f) = lattice_fault(&series) {
+        return Err(fault(out, format!("cannot write: {f}")));
+    }
     let staged = stage.path().join("store.zarr");
     for k in 0..series.meta.steps.len() {
         write_step(&staged, k, &series.step_map(k)?, &put_staged)?;
@@ -136,7 +139,7 @@ pub fn append(
     let _lock = lock_output(out)?;
     // Read again under the lock: another append may have come first.
     let store = Store::open(out)?;
-    if let Some(f) = append_fault(&store, &new) {
+    if let Some(f) = lattice_fault(&new).or_else(|| append_fault(&store, &new)) {
         return Err(fault(out, format!("cannot append: {f}")));
     }
     let t0 = store.steps.len();
@@ -191,13 +194,7 @@ fn append_fault(store: &Store, new: &Series) -> Option<String> {
     if s.layers != n.layers {
         return Some("the input's layers (or their levels) are not the store's".into());
     }
-    let shape = |m: &CloudMapMeta| {
-        (
-            m.structure_grid.filter(|_| !m.extra_images.is_empty()),
-            m.ground.as_ref().map(|g| g.grid),
-        )
-    };
-    if shape(&store.steps[0]) != shape(&new.step_metas[0]) {
+    if lattices(&store.steps[0]) != lattices(&new.step_metas[0]) {
         return Some("the input's structure or ground lattice is not the store's".into());
     }
     let last = s.steps.last()?.forecast_hour;
@@ -209,6 +206,29 @@ fn append_fault(store: &Store, new: &Series) -> Option<String> {
             show_hour(last)
         )
     })
+}
+
+/// A step's structure and ground lattices (`None`: it has none): one per store.
+fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) {
+    (
+        m.structure_grid.filter(|_| !m.extra_images.is_empty()),
+        m.ground.as_ref().map(|g| g.grid),
+    )
+}
+
+/// The first of `series`' steps whose lattices are not the first step's, as a fault.
+fn lattice_fault(series: &Series) -> Option<String> {
+    let first = lattices(series.step_metas.first()?);
+    let (s, _) = series
+        .meta
+        .steps
+        .iter()
+        .zip(&series.step_metas)
+        .find(|(_, m)| lattices(m) != first)?;
+    Some(format!(
+        "step {} has another structure or ground lattice than the first step; a store holds one",
+        show_hour(s.forecast_hour)
+    ))
 }
 
 /// The lattice of `g` split into chunk (row, column) indices.
