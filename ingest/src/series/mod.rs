@@ -37,6 +37,25 @@ pub struct Series {
     pub meta: SeriesMeta,
     /// Each step's map sidecar (same order as `meta.steps`).
     pub step_metas: Vec<CloudMapMeta>,
+    /// Where the step maps come from when they are not PNG sets beside the sidecar (a Zarr
+    /// store, `crate::zarr`); `None`: the step sidecars' PNG sets.
+    pub loader: Option<StepLoader>,
+}
+
+/// Reads step `k`'s map of a series held elsewhere than in PNG sets (a Zarr store).
+#[derive(Clone)]
+pub struct StepLoader(std::sync::Arc<dyn Fn(usize) -> Result<CloudMap> + Send + Sync>);
+
+impl StepLoader {
+    pub fn new(f: impl Fn(usize) -> Result<CloudMap> + Send + Sync + 'static) -> StepLoader {
+        StepLoader(std::sync::Arc::new(f))
+    }
+}
+
+impl std::fmt::Debug for StepLoader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("StepLoader")
+    }
 }
 
 /// Whether `path` is a series sidecar (its `format` says so). A file that cannot be read or
@@ -149,6 +168,36 @@ impl Series {
             path: path.to_path_buf(),
             meta,
             step_metas,
+            loader: None,
+        })
+    }
+
+    /// A series held elsewhere (a Zarr store at `path`): its sidecar `meta` and step sidecars
+    /// checked as [`Series::load`] checks them, its step maps read by `loader`.
+    pub fn with_loader(
+        path: &Path,
+        meta: SeriesMeta,
+        step_metas: Vec<CloudMapMeta>,
+        loader: StepLoader,
+    ) -> Result<Series> {
+        meta.validate()
+            .map_err(|e| IngestError::series(path, format!("series: {e}")))?;
+        for (s, m) in meta.steps.iter().zip(&step_metas) {
+            if let Some(fault) = check::step_fault(&meta, s, m, step_metas.first()) {
+                return Err(IngestError::series(
+                    path,
+                    format!("step {}: {fault}", meta::show_hour(s.forecast_hour)),
+                ));
+            }
+        }
+        if step_metas.len() != meta.steps.len() {
+            return Err(IngestError::series(path, "not one map per step"));
+        }
+        Ok(Series {
+            path: path.to_path_buf(),
+            meta,
+            step_metas,
+            loader: Some(loader),
         })
     }
 
@@ -184,9 +233,10 @@ impl Series {
         })?;
         let sidecar = folder(&self.path).join(&s.map);
         // The step's sidecar was read and checked by `load`: only its images are read now.
-        let read = match self.step_metas.get(k) {
-            Some(m) => CloudMap::load_with(&sidecar, m.clone()),
-            None => CloudMap::load(&sidecar),
+        let read = match (&self.loader, self.step_metas.get(k)) {
+            (Some(l), _) => (l.0)(k),
+            (None, Some(m)) => CloudMap::load_with(&sidecar, m.clone()),
+            (None, None) => CloudMap::load(&sidecar),
         };
         read.map_err(|e| {
             IngestError::series(
@@ -270,6 +320,9 @@ impl Series {
     /// Every file the series reads: its step sidecars, PNGs, structure, ground and motion
     /// images.
     pub fn files(&self) -> Vec<PathBuf> {
+        if self.loader.is_some() {
+            return vec![self.path.clone()];
+        }
         let dir = folder(&self.path);
         let mut v = Vec::new();
         for (s, m) in self.meta.steps.iter().zip(&self.step_metas) {
