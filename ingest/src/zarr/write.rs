@@ -403,6 +403,13 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
 
 /// The group's `zarr.json`: CF run attributes, and the sidecars this reader rebuilds maps from.
 fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
+    // The motion images between steps (issue 31) are not carried by the store yet: its series
+    // names none, and the reader estimates each interval's motion when it is first blended, as
+    // for a series sidecar from before the motion.
+    let mut series = series.clone();
+    for step in &mut series.steps {
+        step.motion = None;
+    }
     let rh_cr: serde_json::Map<String, Value> = metas[0]
         .layers
         .iter()
@@ -425,7 +432,7 @@ fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
             "source_files": files,
             "region": series.region,
             "interpolation": metas[0].interpolation,
-            SERIES_ATTR: series,
+            SERIES_ATTR: &series,
             STEPS_ATTR: metas,
         }
     })
