@@ -11,3 +11,5 @@ export NODEVICE_SELECT=${NODEVICE_SELECT:-1}
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --release -- -D warnings
 cargo test --workspace --release
+# The Python tests: xarray opens the Zarr stores the CLI writes (installs its deps, fails if it cannot).
+bash scripts/python-tests.sh

@@ -17,9 +17,10 @@
 @group(1) @binding(4) var st_kind: texture_2d<f32>;      // genus code, nearest texel
 @group(1) @binding(5) var st_wind: texture_2d<f32>;      // (u, v) high in RG, middle in BA, m/s
 // Two steps blended (render::blend): the later step's coverage, and per layer (three blocks
-// side by side on the structure lattice) both steps' winds (u0, v0, u1, v1), m/s.
+// side by side on the motion's working grid) the guarded motion over the interval, (east,
+// south) in map uv.
 @group(1) @binding(6) var weather_next: texture_2d<f32>;
-@group(1) @binding(7) var blend_wind: texture_2d<f32>;
+@group(1) @binding(7) var blend_motion: texture_2d<f32>;
 
 // Genus codes (stratus_ingest::weather::CloudType) and the profile table's rows.
 const T_CIRRUS: f32 = 1.0;
@@ -100,28 +101,30 @@ struct Sample {
     inside: bool,    // inside the region
 };
 
-// Coverage between two steps (DESIGN §9, semi-Lagrangian): per layer the wind at this pixel,
-// (1 − w)·wind₀ + w·wind₁, displaces the lookups — the earlier step upwind by w·Δt·wind, the
-// later downwind by (1 − w)·Δt·wind — then (1 − w)·a + w·b. Off layers are not looked up.
+// The guarded motion of layer j over the interval at map uv (render::blend: three blocks of
+// the motion grid side by side, the lookup kept inside its layer's block), in uv.
+fn blend_motion_at(uv: vec2<f32>, j: i32) -> vec2<f32> {
+    let half_texel = 0.5 / f32(textureDimensions(blend_motion).x);
+    let bx = clamp(uv.x, 3.0 * half_texel, 1.0 - 3.0 * half_texel);
+    let p = vec2<f32>((bx + f32(j)) / 3.0, clamp(uv.y, 0.0, 1.0));
+    return textureSampleLevel(blend_motion, clamp_lin, p, 0.0).xy;
+}
+
+// Coverage between two steps (DESIGN §9, issue 31) as series::motion::blend makes it: per
+// layer the guarded motion m, read where the feature passing here lands in the later step (two
+// fixed-point steps), moves the lookups — the earlier step at uv − w·m, the later at
+// uv + (1 − w)·m — then (1 − w)·a + w·b. Off layers are not looked up.
 fn blended_cover(uv: vec2<f32>) -> vec3<f32> {
-    let su = uv * f.st_scale + f.st_offset;
-    // Keep the wind lookup inside its layer's block (no bleed from the neighbouring one).
-    let half_texel = 0.5 / f32(textureDimensions(blend_wind).x);
-    let bx = clamp(su.x, 3.0 * half_texel, 1.0 - 3.0 * half_texel);
-    let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
-    // uv per (m/s · s): degrees per metre over the region's span.
-    let per_m = vec2<f32>(
-        57.29578 / (EARTH_R * max(cos(lat), 0.05) * f.region_lon_span),
-        -57.29578 / (EARTH_R * (f.region_north - f.region_south)),
-    );
+    let w = f.blend_w;
     var cm = vec3<f32>(0.0);
     for (var j = 0; j < 3; j++) {
         if (f.layer_scale[j] > 0.0) {
-            let wv = textureSampleLevel(blend_wind, clamp_lin, vec2<f32>((bx + f32(j)) / 3.0, su.y), 0.0);
-            let d = mix(wv.xy, wv.zw, f.blend_w) * per_m;
-            let a = textureSampleLevel(weather, clamp_lin, uv - d * f.blend_back_s, 0.0)[j];
-            let b = textureSampleLevel(weather_next, clamp_lin, uv + d * f.blend_ahead_s, 0.0)[j];
-            cm[j] = mix(a, b, f.blend_w);
+            var m = blend_motion_at(uv, j);
+            m = blend_motion_at(uv + (1.0 - w) * m, j);
+            m = blend_motion_at(uv + (1.0 - w) * m, j);
+            let a = textureSampleLevel(weather, clamp_lin, uv - w * m, 0.0)[j];
+            let b = textureSampleLevel(weather_next, clamp_lin, uv + (1.0 - w) * m, 0.0)[j];
+            cm[j] = mix(a, b, w);
         }
     }
     return cm;

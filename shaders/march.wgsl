@@ -9,6 +9,12 @@
 // the pixel's representative distance in km (the cloud's opacity-weighted distance where it is
 // at least half opaque, else the ground's; 0 for sky): what reprojection moves pixels by.
 @group(2) @binding(2) var out_scene: texture_storage_2d<rgba16float, write>;
+// The farthest each pixel's ray may go (m), row-major at the output size: where a host's own
+// geometry hides what lies behind (render::embed, shaders/embed.wgsl); one huge value otherwise.
+@group(2) @binding(3) var<storage, read> ray_far: array<f32>;
+
+// This invocation's pixel's entry of ray_far.
+var<private> far_m: f32;
 
 // The opacity-weighted distance (m) of the cloud the last march() saw (0 where none).
 var<private> cloud_dist: f32;
@@ -109,7 +115,11 @@ fn segments(r: Ray, mu: f32) -> Segments {
     // Beyond five visibility lengths the haze hides everything (haze_cutoff_m). Haze lives in the low
     // atmosphere, so the length counts from where the ray enters the cloud shells: a camera in
     // orbit still sees the deck below it.
-    var end_all = min(outer.y, max(outer.x, 0.0) + f.haze_cutoff_m);
+    var end_all = min(min(outer.y, max(outer.x, 0.0) + f.haze_cutoff_m), far_m);
+    if (end_all <= max(outer.x, 0.0)) {
+        s.hit = false;
+        return s;
+    }
     let ground = shell_hits(r.h, mu, 0.0);
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
@@ -434,6 +444,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
             jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
         }
         local_count[C_RAYS] = 1u;
+        far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
         let r = make_ray(px);
         let c = march(r, jitter);
         textureStore(out_cloud, vec2<i32>(id.xy), c);

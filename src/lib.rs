@@ -7,7 +7,7 @@
 //! Bottom first: a module uses only modules on its own line or on the lines above it.
 //!
 //! 1. `sun`, `picture` — the leaves: the Sun and Moon for a moment, PNG files written atomically
-//! 2. `render` — the wgpu renderer: settings, targets, the stages of a frame and their shaders
+//! 2. `render` — the wgpu renderer: settings, targets, the stages of a frame and their shaders, and its embedding in a host's renderer
 //! 3. `timeline`, `flight`, `follow`, `scenes`, `score`, `scaled` — what feeds or measures the renderer
 //! 4. `scene`, `bench`, `app` — what commands start from: a `--map` opened once, the bench, the window
 //! 5. `reprojection_bench`, `footprint_bench` — reprojection along a flight and pixel footprints against supersampling, with the bench's measures

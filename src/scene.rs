@@ -8,8 +8,12 @@
 //! ([`Scene::for_renderer`]) all come from that one reading. A sidecar that cannot be read
 //! is no error at opening: commands check their outputs against the files first, and the
 //! fault is the command's error when the map is taken.
+//!
+//! A Zarr store (`STORE.zarr`, `stratus_ingest::zarr`) is a scene too: one step is a map,
+//! several a series whose steps are read from the store; its group metadata is read once.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::{meta_from_text, CloudMap};
@@ -17,6 +21,7 @@ use stratus_ingest::error::{IngestError, Result};
 use stratus_ingest::input::read_sidecar_text;
 use stratus_ingest::meta::CloudMapMeta;
 use stratus_ingest::series::{text_is_series, Series};
+use stratus_ingest::zarr::{self, Store};
 
 use crate::timeline::Timeline;
 
@@ -34,11 +39,19 @@ enum Opened {
     Map(Box<Result<CloudMapMeta>>),
     /// A series sidecar, its steps' sidecars checked (or why not).
     Series(Result<Series>),
+    /// A Zarr store, its metadata checked (or why not).
+    Store(Result<Arc<Store>>),
 }
 
 impl Scene {
     /// Read the sidecar `path` and, for a series, its steps' sidecars; no image is decoded.
     pub fn open(path: &Path) -> Scene {
+        if zarr::is_store(path) {
+            return Scene {
+                path: path.to_path_buf(),
+                opened: Opened::Store(Store::open(path).map(Arc::new)),
+            };
+        }
         let opened = match read_sidecar_text(path) {
             Err(e) => Opened::Unread(e),
             Ok(text) if text_is_series(&text) => Opened::Series(Series::from_text(path, &text)),
@@ -66,9 +79,37 @@ impl Scene {
                 }
             }
             Opened::Series(Ok(s)) => files.extend(s.files()),
+            Opened::Store(_) => files.push(self.path.join("zarr.json")),
             _ => {}
         }
         files
+    }
+
+    /// The store the scene was opened from, when it is one.
+    pub fn store(&self) -> Option<&Arc<Store>> {
+        match &self.opened {
+            Opened::Store(Ok(s)) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The map at `time` as far as a probe at (`lat`, `lon`) reads it: from a store at a
+    /// step (one step, no time, a time at or beyond a step) only the chunks around the point
+    /// ([`Store::read_step_near`]); otherwise [`Scene::map_at`].
+    pub fn map_near(self, time: Option<DateTime<Utc>>, lat: f64, lon: f64) -> Result<CloudMap> {
+        if let Opened::Store(Ok(s)) = &self.opened {
+            let steps = &s.series.steps;
+            let k = match time {
+                None => Some(0),
+                Some(t) if steps.len() == 1 || t <= steps[0].valid_time => Some(0),
+                Some(t) if steps.last().is_some_and(|l| t >= l.valid_time) => Some(steps.len() - 1),
+                Some(t) => steps.iter().position(|s| s.valid_time == t),
+            };
+            if let Some(k) = k {
+                return s.read_step_near(k, lat, lon);
+            }
+        }
+        self.map_at(time)
     }
 
     /// The map at `time`: a series' moment ([`Series::at`], the CPU blend; its first step
@@ -82,6 +123,13 @@ impl Scene {
                 match time {
                     Some(t) => s.at(t),
                     None => s.step_map(0),
+                }
+            }
+            Opened::Store(s) => {
+                let s = s?;
+                match (s.steps.len(), time) {
+                    (1, _) | (_, None) => s.read_step(0),
+                    (_, Some(t)) => s.into_series()?.at(t),
                 }
             }
         }
@@ -98,6 +146,10 @@ impl Scene {
                 let (map, tl) = Timeline::start(s?, time)?;
                 Ok((map, Some(tl)))
             }
+            Opened::Store(Ok(s)) if s.steps.len() > 1 => {
+                let (map, tl) = Timeline::start(s.into_series()?, time)?;
+                Ok((map, Some(tl)))
+            }
             _ => Ok((self.map_at(time)?, None)),
         }
     }
@@ -109,6 +161,13 @@ impl Scene {
             Opened::Unread(e) => Err(e),
             Opened::Map(_) => Ok(None),
             Opened::Series(s) => s.map(Some),
+            Opened::Store(s) => {
+                let s = s?;
+                match s.steps.len() {
+                    1 => Ok(None),
+                    _ => s.into_series().map(Some),
+                }
+            }
         }
     }
 }

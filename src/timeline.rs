@@ -6,8 +6,10 @@
 //! The drift is the time integral of each layer's region-mean wind, interpolated linearly
 //! between steps (held before the first and after the last), so it is continuous through step
 //! boundaries: the noise never jumps. One rigid offset per layer (not per pixel) keeps the
-//! noise from shearing apart over hours where the wind varies; the coverage itself moves with
-//! the per-pixel winds (render::blend).
+//! noise from shearing apart over hours where the wind varies; the coverage itself moves along
+//! the guarded motion between the two steps (issue 31, render::blend): the stored one, or for a
+//! series sidecar from before it, estimated from the two steps when the interval is uploaded
+//! (`Series::motion`; seconds for a large map, once per interval).
 //!
 //! Opening a series costs what its moment needs, whatever the series' length: the step maps
 //! around the moment are the only ones decoded, the means come from the series sidecar
@@ -292,7 +294,8 @@ impl Timeline {
                 }
                 _ => self.step(k + 1)?,
             };
-            r.set_pair(&a, &b)?;
+            let motion = self.series.motion(k, &a, &b)?;
+            r.set_pair(&a, &b, &motion)?;
             self.uploads += 1;
             self.held = Some((k, b));
             self.opened = None;

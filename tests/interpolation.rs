@@ -1,14 +1,16 @@
 //! `stratus verify-interpolation` end to end through the binary (issue 31): the JSON the issue
 //! names and its bar on the real +0/+6/+12 h Poland series, a three-step series made by
 //! carrying a real map a known distance east (the motion must recover its middle step where
-//! the cross-fade shows two ghosts), and the bad holds (one line naming the file, exit 2).
+//! the cross-fade shows two ghosts), and the bad holds (one line naming the file, exit 2);
+//! the motion stored with a series at ingest: damaged copies refused in one line (exit 2), a
+//! series sidecar from before it still loading with the motion estimated.
 
 mod common;
 
 use std::path::{Path, PathBuf};
 
 use chrono::Duration;
-use common::{real_map, sample, stratus};
+use common::{poland, real_map, sample, stratus};
 use serde_json::Value;
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::meta::ExtraRole;
@@ -17,27 +19,6 @@ use stratus_ingest::series::{SeriesMeta, SeriesStep, SERIES_FORMAT};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// The real Poland series (GFS 0.25°, 2020-08-04 12 UTC, +0/+6/+12 h) ingested as the issue
-/// measures it: 48–56°N 13–25°E at 480×320.
-fn poland(dir: &Path) -> PathBuf {
-    let files: Vec<PathBuf> = ["f000", "f006", "f012"]
-        .iter()
-        .map(|f| {
-            sample(&format!(
-                "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.{f}"
-            ))
-        })
-        .collect();
-    let out = dir.join("pl.png");
-    let mut args = vec!["ingest"];
-    args.extend(files.iter().map(|f| s(f)));
-    args.extend_from_slice(&["--region", "48,56,13,25", "--size", "480x320"]);
-    args.extend_from_slice(&["--out", s(&out)]);
-    let o = stratus(&args);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("pl.json")
 }
 
 /// `verify-interpolation --json`, parsed, with the scores printed for the record.
@@ -128,6 +109,7 @@ fn carried_series(real: &Path, px: usize) -> PathBuf {
                     v: image(ExtraRole::WindV),
                 }),
                 mean_wind: None,
+                motion: None,
             }
         })
         .collect();
@@ -185,6 +167,155 @@ fn a_hold_without_a_step_either_side_is_one_line_and_exit_2() {
         );
         assert!(o.stdout.is_empty());
     }
+}
+
+/// `probe` on `map` (with `--time`, the blend at +3 h): exit status and stderr.
+fn probe(map: &Path, time: bool) -> (Option<i32>, String) {
+    let mut args = vec!["probe", "--map", s(map), "--at", "52,19"];
+    if time {
+        args.extend_from_slice(&["--time", "2020-08-04T15:00:00Z"]);
+    }
+    let o = stratus(&args);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// The series sidecar `map` with `edit` applied to its JSON, written beside it as `name`.
+fn edited(map: &Path, name: &str, edit: impl Fn(&mut Value)) -> PathBuf {
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(map).unwrap()).unwrap();
+    edit(&mut v);
+    let p = map.with_file_name(name);
+    std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    p
+}
+
+fn refused(map: &Path, time: bool, says: &[&str]) {
+    let (code, err) = probe(map, time);
+    assert_eq!(code, Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    for x in says {
+        assert!(err.contains(x), "{x:?} not in: {err}");
+    }
+}
+
+/// The motion images ingest writes (issue 31): a series whose motion images are missing, of the
+/// wrong size, corrupt, or whose sidecar gives them a wrong size or an impossible scale is
+/// refused in one line naming the file, exit 2; a sidecar from before them still loads (the
+/// motion estimated, said in one info line).
+#[test]
+fn damaged_motion_images_are_one_line_and_exit_2_and_old_sidecars_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = poland(dir.path());
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&map).unwrap()).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert_eq!(steps[0]["motion"]["u"], "pl-f000.motion-u.png");
+    assert_eq!(steps[1]["motion"]["v"], "pl-f006.motion-v.png");
+    assert!(steps[2].get("motion").is_none(), "the last step has none");
+    let (code, err) = probe(&map, true);
+    assert_eq!(code, Some(0), "{err}");
+
+    let u0 = dir.path().join("pl-f000.motion-u.png");
+    let v1 = dir.path().join("pl-f006.motion-v.png");
+    let (keep_u0, keep_v1) = (std::fs::read(&u0).unwrap(), std::fs::read(&v1).unwrap());
+    std::fs::remove_file(&u0).unwrap();
+    refused(
+        &map,
+        false,
+        &["pl.json", "step +0 h", "pl-f000.motion-u.png: missing"],
+    );
+    std::fs::write(&u0, &keep_u0).unwrap();
+
+    // Another size than the sidecar says (a valid 16-bit RGBA PNG of 16×16).
+    let mut small = Vec::new();
+    stratus_ingest::cloudmap::encode_png16(&mut small, 16, 16, 4, &[0u8; 16 * 16 * 8]).unwrap();
+    std::fs::write(&v1, &small).unwrap();
+    refused(
+        &map,
+        false,
+        &["step +6 h", "pl-f006.motion-v.png", "16x16", "240x160"],
+    );
+    // Corrupt pixel data behind a good header: found when the interval is decoded.
+    std::fs::write(&v1, &keep_v1[..keep_v1.len() / 2]).unwrap();
+    let (code, err) = probe(&map, false);
+    assert_eq!(code, Some(0), "the header alone is checked at load: {err}");
+    let later = edited(&map, "later.json", |v| {
+        // The blend at +3 h reads the +0 → +6 h motion; make it the damaged one.
+        v["steps"][0]["motion"] = v["steps"][1]["motion"].clone();
+    });
+    refused(
+        &later,
+        true,
+        &["later.json", "pl-f006.motion-v.png", "corrupt"],
+    );
+    std::fs::write(&v1, &keep_v1).unwrap();
+
+    for (name, field, value, says) in [
+        (
+            "scale.json",
+            "scale",
+            serde_json::json!(1.0e6),
+            "steps[0].motion.scale",
+        ),
+        (
+            "negative.json",
+            "scale",
+            serde_json::json!(-0.01),
+            "steps[0].motion.scale",
+        ),
+        (
+            "width.json",
+            "width",
+            serde_json::json!(480),
+            "steps[0].motion: 480x160",
+        ),
+    ] {
+        let bad = edited(&map, name, |v| {
+            v["steps"][0]["motion"][field] = value.clone()
+        });
+        refused(&bad, false, &[name, says]);
+    }
+
+    // A series sidecar from before issue 31: no motion entries. It loads, the motion is
+    // estimated, said once at info level; the blend is the stored one's up to quantisation.
+    let old = edited(&map, "old.json", |v| {
+        for s in v["steps"].as_array_mut().unwrap() {
+            s.as_object_mut().unwrap().remove("motion");
+        }
+    });
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stratus"))
+        .args(["probe", "--map", s(&old), "--at", "52,19"])
+        .args(["--time", "2020-08-04T15:00:00Z", "--json"])
+        .env("RUST_LOG", "info")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let said: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("no motion images"))
+        .collect();
+    assert_eq!(said.len(), 1, "{err}");
+    assert!(
+        said[0].contains("old.json") && said[0].contains("estimated"),
+        "{err}"
+    );
+    let a = stratus_ingest::series::Series::load(&map).unwrap();
+    let b = stratus_ingest::series::Series::load(&old).unwrap();
+    let t = a.steps()[0].valid_time + Duration::hours(3);
+    let (ma, mb) = (a.at(t).unwrap(), b.at(t).unwrap());
+    let worst = ma
+        .texels
+        .iter()
+        .zip(&mb.texels)
+        .flat_map(|(p, q)| (0..3).map(move |c| p[c].abs_diff(q[c])))
+        .max()
+        .unwrap();
+    assert!(
+        f64::from(worst) <= 0.01 * stratus_ingest::cloudmap::COVERAGE_FULL,
+        "stored and estimated-at-load blends differ by {worst}"
+    );
 }
 
 /// Measurement for docs/time.md (run with `--ignored --nocapture`): on the two-step North
@@ -246,4 +377,43 @@ fn motion_fit_on_the_real_pairs() {
             );
         }
     }
+}
+
+/// Measurement for docs/time.md (run with `--ignored --nocapture`): the cost of the motion at
+/// the size of a 0.25° global step (1440×720 pixels; the real 2.5° sample ingested at that
+/// size, its later step the same map carried 8 px east — the estimate's cost depends on the
+/// map's size, not on its source's resolution): estimating it (what ingest adds per step),
+/// writing and reading its images, and one CPU blend.
+#[test]
+#[ignore]
+fn motion_cost_at_a_quarter_degree_global_size() {
+    use stratus_ingest::series::{motion, stored};
+    let dir = tempfile::tempdir().unwrap();
+    let real = real_map(dir.path(), "globe", "-90,90,-180,180", "1440x720");
+    let a = CloudMap::load(&real).unwrap();
+    let mut b = carried(&a, 8);
+    b.meta.source.valid_time = a.meta.source.valid_time.map(|t| t + Duration::hours(6));
+    let t = std::time::Instant::now();
+    let m = motion::estimate(&a, &b, 6.0 * 3600.0).unwrap();
+    let est = t.elapsed().as_secs_f64();
+    let (pu, pv) = (
+        dir.path().join("g.motion-u.png"),
+        dir.path().join("g.motion-v.png"),
+    );
+    let t = std::time::Instant::now();
+    let entry = stored::write(&m, (&pu, &pv)).unwrap();
+    let wr = t.elapsed().as_secs_f64();
+    let bytes = std::fs::metadata(&pu).unwrap().len() + std::fs::metadata(&pv).unwrap().len();
+    let t = std::time::Instant::now();
+    let baked = m.baked();
+    let blend = motion::blend(&a, &b, 0.5, 6.0 * 3600.0, &baked).unwrap();
+    let bl = t.elapsed().as_secs_f64();
+    let (dx, _, g) = baked.layers[2].summary();
+    println!(
+        "1440x720: estimate {est:.1} s; images {}x{} written in {wr:.3} s, {bytes} B; \
+         CPU blend {bl:.2} s; high layer mean motion {dx:.2} px east (8 carried), guard {g:.2}; {} px",
+        entry.width,
+        entry.height,
+        blend.width()
+    );
 }

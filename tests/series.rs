@@ -76,6 +76,8 @@ fn the_real_steps_round_trip_as_a_series() {
             want.push(format!("{step}{suffix}"));
         }
     }
+    // The motion from +0 h to +6 h (issue 31): on the first step only.
+    want.extend(["na-f000.motion-u.png".into(), "na-f000.motion-v.png".into()]);
     want.sort();
     assert_eq!(names_in(dir.path()), want);
 
@@ -91,6 +93,9 @@ fn the_real_steps_round_trip_as_a_series() {
     assert_eq!(st[1]["map"], "na-f006.json");
     assert_eq!(st[1]["winds"]["u"], "na-f006.wind-u.png");
     assert_eq!(st[1]["winds"]["v"], "na-f006.wind-v.png");
+    assert_eq!(st[0]["motion"]["u"], "na-f000.motion-u.png");
+    assert_eq!(st[0]["motion"]["width"], 256);
+    assert!(st[1].get("motion").is_none());
     let kinds: Vec<&str> = series["layers"]
         .as_array()
         .unwrap()

@@ -12,6 +12,7 @@
 //! 6. `geotiff` — the writers' format: tiled, georeferenced GeoTIFF with overviews (the PNG writer is the pipeline's own)
 //! 7. `pipeline` — forecast → map: the formula, the resampling plan, the band-streaming PNG and GeoTIFF writers, statistics
 //! 8. `series`, `fetch` — on top: forecast series (steps, blending, advection) and downloading GFS runs
+//! 9. `zarr` — the Zarr v3 store: a map or a series as one store xarray opens, written from the PNG set's maps and read back into them
 //!
 //! Pipeline: [`grib`] scans and validates messages and decodes only the RH (and gh) fields
 //! needed → [`spline`] upsamples onto the region's pixel grid → [`pipeline`] applies the
@@ -56,6 +57,7 @@ pub mod series;
 pub mod spline;
 pub mod structure;
 pub mod weather;
+pub mod zarr;
 
 pub use cloudmap::CloudMap;
 pub use error::{IngestError, Result};

@@ -657,6 +657,20 @@ pub fn commit_staged_then<T>(
     Ok(after())
 }
 
+/// An exclusive lock across processes on `target`: the lock file `.NAME.lock` beside it, the
+/// one a pair's commit takes. A Zarr store is created and appended to under it, so racing
+/// writers run one after the other. Released when dropped.
+pub struct OutputLock {
+    _lock: PairLock,
+}
+
+/// Take [`OutputLock`] on `target`, waiting for its holder.
+pub fn lock_output(target: &Path) -> Result<OutputLock> {
+    Ok(OutputLock {
+        _lock: PairLock::acquire(target)?,
+    })
+}
+
 /// Exclusive lock on a map's pair, across processes (see [`write_pair`]).
 struct PairLock {
     path: PathBuf,

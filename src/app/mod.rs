@@ -219,13 +219,17 @@ impl App {
             .map_err(|e| anyhow!("cannot draw into the window: {e}"))?;
         let gpu = Gpu::with_instance(instance, self.opts.adapter.as_deref(), Some(&surface))?;
         eprintln!("stratus: adapter {}", gpu::describe(&gpu.info));
-        let caps = surface.get_capabilities(&gpu.adapter);
+        let adapter = gpu
+            .adapter
+            .clone()
+            .ok_or_else(|| anyhow!("no adapter for the window"))?;
+        let caps = surface.get_capabilities(&adapter);
         let format = surface_format(&caps)
             .ok_or_else(|| anyhow!("this GPU cannot present to the window (no surface format)"))?;
         let can_read = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
         let size = window.inner_size();
         let mut config = surface
-            .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
+            .get_default_config(&adapter, size.width.max(1), size.height.max(1))
             .ok_or_else(|| anyhow!("the window's surface is not supported by this adapter"))?;
         config.format = format;
         if can_read {

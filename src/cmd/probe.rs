@@ -1,6 +1,7 @@
 //! `stratus probe`: what a map holds at one point — the ground (terrain height, surface, the
 //! column's cloud water) and per layer coverage, cloud base and top, type and where the heights
-//! came from. What a user checks a map against a sounding or a METAR with.
+//! came from. What a user checks a map against a sounding or a METAR with. From a Zarr store
+//! only the chunks around the point are read, and how much that was is reported.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -13,7 +14,7 @@ use super::options::{parse_lat_lon, parse_time};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// CloudMap sidecar (MAP.json) or series sidecar.
+    /// CloudMap sidecar (MAP.json), series sidecar or Zarr store (STORE.zarr).
     #[arg(long)]
     pub map: PathBuf,
     /// With a series: the moment (ISO 8601 UTC), blended between the two steps around it;
@@ -25,7 +26,8 @@ pub struct Args {
     pub at: String,
     /// Print JSON: {"lat", "lon", "ground_m", "ground_source", "land", "ice", "snow_kg_m2",
     /// "snow_cover", "albedo", "cwat_kg_m2", "ground_fields",
-    /// "layers": [{"kind", "coverage", "base_m", "top_m", "type", "source"}]}.
+    /// "layers": [{"kind", "coverage", "base_m", "top_m", "type", "source"}]}; from a store also
+    /// "store": {"chunks_read", "bytes_read", "store_bytes"}.
     #[arg(long)]
     pub json: bool,
 }
@@ -33,7 +35,9 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (lat, lon) = parse_lat_lon(&a.at, "--at")?;
     let time = a.time.as_deref().map(parse_time).transpose()?;
-    let map = Scene::open(&a.map).map_at(time)?;
+    let scene = Scene::open(&a.map);
+    let store = scene.store().cloned();
+    let map = scene.map_near(time, lat, lon)?;
     let r = map.meta.region;
     let Some(p) = map.probe(lat, lon) else {
         anyhow::bail!(
@@ -45,8 +49,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             r.east
         );
     };
+    let read = store.map(|s| {
+        let st = s.stats();
+        serde_json::json!({"chunks_read": st.chunks_read, "bytes_read": st.bytes_read,
+                           "store_bytes": s.size_on_disk()})
+    });
     if a.json {
-        out!("{}", serde_json::to_string_pretty(&p)?)?;
+        let mut v = serde_json::to_value(&p)?;
+        if let (Some(r), Some(o)) = (&read, v.as_object_mut()) {
+            o.insert("store".into(), r.clone());
+        }
+        out!("{}", serde_json::to_string_pretty(&v)?)?;
         return Ok(ExitCode::SUCCESS);
     }
     out!("{lat:.4}, {lon:.4} in {}", shown(&a.map))?;
@@ -88,6 +101,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             m(l.top_m),
             l.cloud_type.map_or("-", |t| t.name()),
             l.source.name()
+        )?;
+    }
+    if let Some(r) = read {
+        out!(
+            "read {} chunk(s), {} of the store's {} bytes",
+            r["chunks_read"],
+            r["bytes_read"],
+            r["store_bytes"]
         )?;
     }
     Ok(ExitCode::SUCCESS)

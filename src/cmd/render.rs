@@ -14,7 +14,8 @@ use super::options::{parse_camera, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// CloudMap sidecar (MAP.json) or series sidecar written by `stratus ingest`.
+    /// CloudMap sidecar (MAP.json), series sidecar or Zarr store (STORE.zarr) written by
+    /// `stratus ingest`.
     #[arg(long)]
     pub map: PathBuf,
     /// Camera position LAT,LON,ALT_M (degrees, degrees, metres above sea level), or

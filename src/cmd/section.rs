@@ -21,7 +21,7 @@ use super::options::{parse_lat_lon, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// CloudMap sidecar (MAP.json) or series sidecar.
+    /// CloudMap sidecar (MAP.json), series sidecar or Zarr store (STORE.zarr).
     #[arg(long)]
     pub map: PathBuf,
     /// Start of the section, LAT,LON in degrees.

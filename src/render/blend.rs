@@ -1,22 +1,24 @@
 //! The two forecast steps around the scene's time on the GPU (DESIGN §9): the later step's
-//! coverage beside the earlier one's (which stays in the weather texture), both steps' layer
-//! winds, and the blend's state. march.wgsl blends them per sample, semi-Lagrangian: the
-//! earlier step sampled upwind by w·Δt·wind, the later downwind by (1 − w)·Δt·wind, the wind
-//! (1 − w)·wind₀ + w·wind₁ at the sample's own pixel (one displacement lookup, no trajectory;
-//! `stratus_ingest::series::blend` is the CPU reference that integrates one).
+//! coverage beside the earlier one's (which stays in the weather texture), the guarded motion
+//! between them (issue 31, `stratus_ingest::series::motion`), and the blend's state.
+//! march.wgsl blends them per sample as the CPU does (`series::motion::blend`, what
+//! `Series::at` makes): the motion m read where the feature passing the sample lands in the
+//! later step (two fixed-point steps), the earlier step sampled at x − w·m, the later at
+//! x + (1 − w)·m, then (1 − w)·a + w·b. The layer winds move only the noise (the drift).
 //!
 //! The structure lattice is small (a few hundred texels a side), so base, top and the streak
 //! wind are interpolated on the CPU when w changes and written into the structure textures;
 //! the genus is the nearer step's, as the CPU reference takes it.
 //!
 //! Textures (Rgba16Float): `next`, the later step's coverage (the weather texture's size);
-//! `wind`, three blocks side by side on the structure lattice, block j = layer j (low, middle,
-//! high), texel (u₀, v₀, u₁, v₁) m/s. Without a pair both are 1×1 and the march never reads
-//! them (`FLAG_BLEND` off).
+//! `motion`, three blocks side by side on the motion's working grid (at most 256² texels,
+//! covering the map as its pixels do), block j = layer j (low, middle, high), texel
+//! (east, south, 0, 0): the guarded motion over the interval in map uv. Without a pair both
+//! are 1×1 and the march never reads them (`FLAG_BLEND` off).
 
 use chrono::{DateTime, Utc};
 use stratus_ingest::cloudmap::CloudMap;
-use stratus_ingest::structure::{sample_to_wind, MapStructure};
+use stratus_ingest::series::motion::Motion;
 
 use super::gpu::Gpu;
 use super::structure::{Prepared as StructurePrepared, StructureInfo};
@@ -27,9 +29,9 @@ use super::texture::{map_texture, write};
 pub struct BlendNow {
     /// Fraction of the interval elapsed, 0..=1.
     pub w: f32,
-    /// Seconds the earlier step is carried forward (w·Δt): it is sampled this far upwind.
+    /// Seconds since the earlier step (w·Δt; the blend itself reads only `w`).
     pub back_s: f32,
-    /// Seconds to the later step ((1 − w)·Δt): it is sampled this far downwind.
+    /// Seconds to the later step ((1 − w)·Δt).
     pub ahead_s: f32,
 }
 
@@ -44,7 +46,7 @@ pub struct Pair {
 
 pub struct Blend {
     pub next: wgpu::Texture,
-    pub wind: wgpu::Texture,
+    pub motion: wgpu::Texture,
     pub pair: Option<Pair>,
     pub now: Option<BlendNow>,
 }
@@ -59,19 +61,19 @@ impl Blend {
         };
         Blend {
             next: one("blend: next step"),
-            wind: one("blend: winds"),
+            motion: one("blend: motion"),
             pair: None,
             now: None,
         }
     }
 
-    /// Put the later step `halfs` (`w`×`h` RGBA f16) and both steps' winds on the GPU. True
-    /// when the textures were kept (the map bind group stays valid).
+    /// Put the later step `halfs` (`w`×`h` RGBA f16) and the motion between the steps on the
+    /// GPU. True when the textures were kept (the map bind group stays valid).
     pub fn store(
         &mut self,
         gpu: &Gpu,
         (halfs, w, h): (&[half::f16], usize, usize),
-        (a, b): (&CloudMap, &CloudMap),
+        (a, b, motion): (&CloudMap, &CloudMap, &Motion),
         structures: Option<[StructurePrepared; 2]>,
     ) -> Result<bool, String> {
         let (t0, t1) = match (a.meta.source.valid_time, b.meta.source.valid_time) {
@@ -89,17 +91,17 @@ impl Blend {
             kept = false;
         }
         write(gpu, &self.next, bytemuck::cast_slice(halfs), 8);
-        let (ww, wh, texels) = wind_texels(a.structure.as_ref(), b.structure.as_ref());
-        if (self.wind.width(), self.wind.height()) != (ww, wh) {
-            self.wind = map_texture(
+        let (mw, mh, texels) = motion_texels(motion, w, h);
+        if (self.motion.width(), self.motion.height()) != (mw, mh) {
+            self.motion = map_texture(
                 gpu,
-                "blend: winds",
-                (ww as usize, wh as usize),
+                "blend: motion",
+                (mw as usize, mh as usize),
                 wgpu::TextureFormat::Rgba16Float,
             );
             kept = false;
         }
-        write(gpu, &self.wind, bytemuck::cast_slice(&texels), 8);
+        write(gpu, &self.motion, bytemuck::cast_slice(&texels), 8);
         self.pair = Some(Pair {
             t0,
             t1,
@@ -139,31 +141,24 @@ impl Blend {
     }
 }
 
-/// Both steps' per-layer winds as the `wind` texture's texels (width, height, RGBA f16); 1×1
-/// calm where either step lacks winds or their lattices differ.
-fn wind_texels(a: Option<&MapStructure>, b: Option<&MapStructure>) -> (u32, u32, Vec<half::f16>) {
-    let calm = (1, 1, vec![half::f16::ZERO; 4]);
-    let (Some(a), Some(b)) = (a, b) else {
-        return calm;
+/// The guarded motion as the `motion` texture's texels (width, height, RGBA f16): three
+/// blocks of the working grid, texel (east, south) in uv of a `map_w`×`map_h` map over the
+/// interval; 1×1 still where the motion has no layers.
+pub fn motion_texels(motion: &Motion, map_w: usize, map_h: usize) -> (u32, u32, Vec<half::f16>) {
+    let Some((w, h)) = motion.layers.first().map(|l| (l.u.w, l.u.h)) else {
+        return (1, 1, vec![half::f16::ZERO; 4]);
     };
-    if a.grid != b.grid || !a.is_whole() || !b.is_whole() {
-        return calm;
-    }
-    let (w, h) = (a.grid.width as usize, a.grid.height as usize);
-    let f = |v: u16| half::f16::from_f32(sample_to_wind(v) as f32);
     let mut out = vec![half::f16::ZERO; 3 * w * h * 4];
-    for j in 0..h {
-        for layer in 0..3 {
-            for i in 0..w {
-                let k = j * w + i;
-                let o = (j * 3 * w + layer * w + i) * 4;
-                out[o..o + 4].copy_from_slice(&[
-                    f(a.wind_u[k][layer]),
-                    f(a.wind_v[k][layer]),
-                    f(b.wind_u[k][layer]),
-                    f(b.wind_v[k][layer]),
-                ]);
-            }
+    for layer in 0..3 {
+        let Some(lm) = motion.layer(layer).filter(|l| (l.u.w, l.u.h) == (w, h)) else {
+            continue;
+        };
+        let (u, v) = lm.guarded_px();
+        for k in 0..w * h {
+            let (i, j) = (k % w, k / w);
+            let o = (j * 3 * w + layer * w + i) * 4;
+            out[o] = half::f16::from_f32(u[k] / map_w as f32);
+            out[o + 1] = half::f16::from_f32(v[k] / map_h as f32);
         }
     }
     (3 * w as u32, h as u32, out)

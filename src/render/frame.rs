@@ -165,7 +165,7 @@ pub mod flags {
     pub const TOWERS: u32 = 256;
     /// The map holds cirrus-like genera: noise streaked along the wind.
     pub const STREAKS: u32 = 512;
-    /// Two forecast steps are blended, the coverage carried along the layer winds.
+    /// Two forecast steps are blended, the coverage moved along the motion between them.
     pub const BLEND: u32 = 1024;
     /// The map holds cumulus: its columns are cells (render::cells).
     pub const CELLS: u32 = 2048;

@@ -2,10 +2,11 @@
 
 use super::RenderError;
 
-/// A device ready for Stratus: the adapter it came from and what it can time.
+/// A device ready for Stratus: the adapter it came from and what it can time. A host's device
+/// (render::embed, [`Gpu::host`]) comes without the instance and adapter, which stay the host's.
 pub struct Gpu {
-    pub instance: wgpu::Instance,
-    pub adapter: wgpu::Adapter,
+    pub instance: Option<wgpu::Instance>,
+    pub adapter: Option<wgpu::Adapter>,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -112,13 +113,26 @@ impl Gpu {
         let (device, queue) = pollster::block_on(adapter.request_device(&desc))
             .map_err(|e| RenderError::Device(format!("{}: {e}", describe(&info))))?;
         Ok(Gpu {
-            instance,
-            adapter,
+            instance: Some(instance),
+            adapter: Some(adapter),
             device,
             queue,
             info,
             timestamps,
         })
+    }
+
+    /// A host's device and queue (render::embed): Stratus opens nothing of its own, and times
+    /// no pass (timestamp queries are a feature the host may not have asked for).
+    pub fn host(device: &wgpu::Device, queue: &wgpu::Queue) -> Gpu {
+        Gpu {
+            instance: None,
+            adapter: None,
+            info: device.adapter_info(),
+            device: device.clone(),
+            queue: queue.clone(),
+            timestamps: false,
+        }
     }
 
     /// True when this is a CPU implementation (lavapipe, SwiftShader, WARP).

@@ -60,13 +60,16 @@ pub const BINDINGS: &[Binding] = &[
     b(GROUP_MAP, 3, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 4, Resource::Texture2d { filterable: false }),
     b(GROUP_MAP, 5, Resource::Texture2d { filterable: true }),
-    // Two steps blended (render::blend): the later step's coverage, both steps' winds.
+    // Two steps blended (render::blend): the later step's coverage, the motion between them.
     b(GROUP_MAP, 6, Resource::Texture2d { filterable: true }),
     b(GROUP_MAP, 7, Resource::Texture2d { filterable: true }),
     b(GROUP_TARGET, 0, Resource::StorageTexture(CLOUD_FORMAT, 2)),
     b(GROUP_TARGET, 1, Resource::StorageRw),
     // The background behind the cloud and the pixel's distance (km).
     b(GROUP_TARGET, 2, Resource::StorageTexture(CLOUD_FORMAT, 2)),
+    // The farthest each pixel's ray may go (m): a host's depth (render::embed), else one huge
+    // value ([`MarchPass::unlimited`]).
+    b(GROUP_TARGET, 3, Resource::StorageRead),
 ];
 
 /// Every binding of march.wgsl with the scene's group (render::scene) that it shares.
@@ -81,6 +84,9 @@ const fn b(group: u32, binding: u32, resource: Resource) -> Binding {
         resource,
     }
 }
+
+/// `ray_far`'s value where nothing stops a ray (m): the march's own ends decide.
+pub const UNLIMITED_M: f32 = 3.0e38;
 
 /// The per-pixel mask of rays cut short (1 bit a pixel) for a `width`×`height` march.
 pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
@@ -100,6 +106,8 @@ pub struct MarchPass {
     layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
+    /// One [`UNLIMITED_M`]: the rays' farthest reach when no host depth limits them.
+    pub unlimited: wgpu::Buffer,
     /// The device-lifetime bind group (uniforms, noise, samplers, counters, genus profiles,
     /// cumulus cells).
     device_bind: wgpu::BindGroup,
@@ -143,6 +151,14 @@ impl MarchPass {
                 | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let unlimited = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("unlimited rays"),
+            size: 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        gpu.queue
+            .write_buffer(&unlimited, 0, &UNLIMITED_M.to_le_bytes());
         let sampler = |mode: wgpu::AddressMode, label: &str| {
             dev.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some(label),
@@ -185,6 +201,7 @@ impl MarchPass {
             layouts,
             uniforms,
             counters,
+            unlimited,
             device_bind,
         }
     }
@@ -209,7 +226,7 @@ impl MarchPass {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (w, c) = (view(&weather.texture), view(&weather.coarse));
         let st = weather.structure.textures.each_ref().map(view);
-        let (next, wind) = (view(&weather.blend.next), view(&weather.blend.wind));
+        let (next, motion) = (view(&weather.blend.next), view(&weather.blend.motion));
         use wgpu::BindingResource as R;
         bind(
             &gpu.device,
@@ -223,18 +240,20 @@ impl MarchPass {
                 R::TextureView(&st[2]),
                 R::TextureView(&st[3]),
                 R::TextureView(&next),
-                R::TextureView(&wind),
+                R::TextureView(&motion),
             ],
         )
     }
 
-    /// The output's bind group: made again only when the output size changes.
+    /// The output's bind group: made again only when the output size changes. `far`: each
+    /// pixel's farthest reach (m), or [`MarchPass::unlimited`].
     pub fn bind_target(
         &self,
         gpu: &Gpu,
         cloud: &wgpu::TextureView,
         scene: &wgpu::TextureView,
         cut_mask: &wgpu::Buffer,
+        far: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         bind(
             &gpu.device,
@@ -244,6 +263,7 @@ impl MarchPass {
                 wgpu::BindingResource::TextureView(cloud),
                 wgpu::BindingResource::Buffer(cut_mask.as_entire_buffer_binding()),
                 wgpu::BindingResource::TextureView(scene),
+                wgpu::BindingResource::Buffer(far.as_entire_buffer_binding()),
             ],
         )
     }

@@ -17,13 +17,15 @@
 //! Around them: `settings` (a frame's settings and their validation), `targets` (the render
 //! targets, by the output size's lifetime), `frame` forms the uniforms, `camera` holds the
 //! geometry, `preset` the quality levels, `gpu` the adapter, `stats` a frame's cost,
-//! `readback` brings pictures back to the CPU.
+//! `readback` brings pictures back to the CPU. `embed` draws the clouds inside a host's own
+//! wgpu renderer (its device, camera, colour and depth: issue 33).
 
 pub mod atmosphere;
 pub mod blend;
 pub mod camera;
 pub mod cells;
 pub mod contract;
+pub mod embed;
 pub mod exposure;
 pub mod frame;
 pub mod gpu;
@@ -234,12 +236,18 @@ impl Renderer {
     }
 
     /// Hold two forecast steps of one series, `a` before `b`, and blend them at each frame's
-    /// time (render::blend); [`set_map`](Self::set_map) goes back to one map. Only these two
-    /// steps' textures are on the GPU.
-    pub fn set_pair(&mut self, a: &CloudMap, b: &CloudMap) -> Result<(), RenderError> {
+    /// time along `motion`, the guarded motion between them (render::blend; `Series::motion`);
+    /// [`set_map`](Self::set_map) goes back to one map. Only these two steps' textures are on
+    /// the GPU.
+    pub fn set_pair(
+        &mut self,
+        a: &CloudMap,
+        b: &CloudMap,
+        motion: &stratus_ingest::series::motion::Motion,
+    ) -> Result<(), RenderError> {
         let kept = self
             .weather
-            .set_pair(&self.gpu, a, b)
+            .set_pair(&self.gpu, (a, b), motion)
             .map_err(RenderError::BadSetting)?;
         if !kept {
             self.map_bind = self.march.bind_map(&self.gpu, &self.weather);

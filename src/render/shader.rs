@@ -44,6 +44,10 @@ pub const PRESENT: &str = concat!(
     include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/present.wgsl")
 );
+pub const EMBED: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/embed.wgsl")
+);
 
 pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -69,6 +73,7 @@ mod tests {
             ("exposure", EXPOSURE),
             ("reproject", REPROJECT),
             ("atmosphere", ATMOSPHERE),
+            ("embed", EMBED),
         ] {
             let module = naga::front::wgsl::parse_str(src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));

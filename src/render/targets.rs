@@ -25,12 +25,17 @@ pub(super) struct FrameSet {
 }
 
 impl FrameSet {
-    pub(super) fn new(r: Stages<'_>, size: (u32, u32), cut_mask: &wgpu::Buffer) -> FrameSet {
+    pub(super) fn new(
+        r: Stages<'_>,
+        size: (u32, u32),
+        cut_mask: &wgpu::Buffer,
+        far: &wgpu::Buffer,
+    ) -> FrameSet {
         let (cloud, scene) = frame_textures(r.gpu, size);
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (cv, sv) = (view(&cloud), view(&scene));
         FrameSet {
-            march_bind: r.march.bind_target(r.gpu, &cv, &sv, cut_mask),
+            march_bind: r.march.bind_target(r.gpu, &cv, &sv, cut_mask, far),
             present_bind: r.present.bind_target(r.gpu, &cv, &sv),
             exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
             cloud,
@@ -93,11 +98,12 @@ impl History {
         n: u32,
         first: &FrameSet,
         cut_mask: &wgpu::Buffer,
+        far: &wgpu::Buffer,
     ) -> History {
         let cells = (width.div_ceil(n), height.div_ceil(n));
         let (fc, fs) = frame_textures(r.gpu, cells);
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let other = FrameSet::new(r, (width, height), cut_mask);
+        let other = FrameSet::new(r, (width, height), cut_mask, far);
         let fresh = [view(&fc), view(&fs)];
         let sets = [
             [view(&first.cloud), view(&first.scene)],
@@ -114,7 +120,10 @@ impl History {
         });
         History {
             n,
-            fresh_march_bind: r.march.bind_target(r.gpu, &fresh[0], &fresh[1], cut_mask),
+            // A subset march's pixels are full-size pixels: the same reach per pixel.
+            fresh_march_bind: r
+                .march
+                .bind_target(r.gpu, &fresh[0], &fresh[1], cut_mask, far),
             cells,
             other,
             reproject_bind,
@@ -136,6 +145,9 @@ pub(super) struct Targets {
     pub(super) color: Option<wgpu::Texture>,
     /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
     pub(super) cut_mask: wgpu::Buffer,
+    /// Each pixel's farthest reach (m): a host's depth (render::embed) or the one unlimited
+    /// value.
+    pub(super) far: wgpu::Buffer,
     /// Made on the first reprojected frame at this size.
     pub(super) history: Option<History>,
     /// Whether the last frame was reprojected (it then shows `history`'s frame `shown`).
@@ -145,14 +157,24 @@ pub(super) struct Targets {
 }
 
 impl Targets {
-    pub(super) fn new(r: Stages<'_>, (width, height): (u32, u32)) -> Targets {
+    pub(super) fn new(r: Stages<'_>, size: (u32, u32)) -> Targets {
+        Targets::with_far(r, size, r.march.unlimited.clone())
+    }
+
+    /// Targets whose rays stop at `far` (m per pixel, row-major at this size).
+    pub(super) fn with_far(
+        r: Stages<'_>,
+        (width, height): (u32, u32),
+        far: wgpu::Buffer,
+    ) -> Targets {
         let cut_mask = march::cut_mask_buffer(r.gpu, width, height);
         Targets {
             width,
             height,
-            frame: FrameSet::new(r, (width, height), &cut_mask),
+            frame: FrameSet::new(r, (width, height), &cut_mask, &far),
             color: None,
             cut_mask,
+            far,
             history: None,
             reprojected: false,
             subset_marched: false,
@@ -212,7 +234,7 @@ impl Renderer {
     }
 
     /// The stages that bind frame textures, beside the targets they bind.
-    fn split(&mut self) -> (Stages<'_>, &mut Option<Targets>) {
+    pub(super) fn split(&mut self) -> (Stages<'_>, &mut Option<Targets>) {
         let Renderer {
             gpu,
             march,
@@ -289,7 +311,7 @@ impl Renderer {
             return None;
         };
         if t.history.as_ref().is_none_or(|h| h.n != n) {
-            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask));
+            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask, &t.far));
         }
         let h = t.history.as_mut()?;
         let now = reproject::FrameKey {

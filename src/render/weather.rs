@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::series::motion::Motion;
 
 use super::blend::Blend;
 use super::camera::EARTH_R;
@@ -35,7 +36,7 @@ pub struct WeatherMap {
     pub coarse_h: usize,
     /// Per-pixel base, top, type and wind (a 1×1 stand-in for maps without them).
     pub structure: StructureTextures,
-    /// The later step and both steps' winds when two steps are blended (render::blend).
+    /// The later step and the motion between the steps when two are blended (render::blend).
     pub blend: Blend,
 }
 
@@ -216,10 +217,16 @@ impl WeatherMap {
     }
 
     /// Upload two forecast steps to be blended (DESIGN §9): `a` into these textures (as
-    /// [`replace`](Self::replace)), `b` and both steps' winds beside it; the coarse map is the
-    /// max of both, dilated by the farthest either is carried in the interval, so empty-space
-    /// skipping never passes over displaced cover. True when every texture was kept.
-    pub fn set_pair(&mut self, gpu: &Gpu, a: &CloudMap, b: &CloudMap) -> Result<bool, String> {
+    /// [`replace`](Self::replace)), `b` and the guarded motion between them beside it; the
+    /// coarse map is the max of both, dilated by the farthest the motion carries cover in the
+    /// interval, so empty-space skipping never passes over displaced cover. True when every
+    /// texture was kept.
+    pub fn set_pair(
+        &mut self,
+        gpu: &Gpu,
+        (a, b): (&CloudMap, &CloudMap),
+        motion: &Motion,
+    ) -> Result<bool, String> {
         stratus_ingest::series::advect::check_compatible(a, b)?;
         let (pa, pb) = (Prepared::new(gpu, a), Prepared::new(gpu, b));
         let structures = (pa.structure.info.present
@@ -227,7 +234,9 @@ impl WeatherMap {
             && (pa.structure.width, pa.structure.height)
                 == (pb.structure.width, pb.structure.height))
             .then(|| [pa.structure.clone(), pb.structure.clone()]);
-        let reach_cells = carried_cells(a, b, pa.w, pa.h);
+        // No lookup moves further than the largest guarded shift (bilinear bleed is in the
+        // coarse map's own one-cell dilation).
+        let reach_cells = (motion.max_shift_px() / COARSE_CELL as f32).ceil() as usize;
         let cells: Vec<f32> = pa
             .cells
             .iter()
@@ -240,7 +249,7 @@ impl WeatherMap {
         self.coarse_cells = cells;
         kept &= self
             .blend
-            .store(gpu, (&pb.halfs, pb.w, pb.h), (a, b), structures)?;
+            .store(gpu, (&pb.halfs, pb.w, pb.h), (a, b, motion), structures)?;
         Ok(kept)
     }
 
@@ -254,7 +263,7 @@ impl WeatherMap {
             + t(&self.coarse)
             + self.structure.textures.iter().map(t).sum::<u64>()
             + t(&self.blend.next)
-            + t(&self.blend.wind)
+            + t(&self.blend.motion)
     }
 
     fn store(&mut self, gpu: &Gpu, p: Prepared) {
@@ -265,41 +274,6 @@ impl WeatherMap {
         self.coarse_cells = p.cells;
         self.structure.store(gpu, &p.structure);
     }
-}
-
-/// Coarse cells the farthest displacement of the interval spans: the fastest layer wind of
-/// either step times the interval, in the map's pixels at its widest (poleward) pixel.
-fn carried_cells(a: &CloudMap, b: &CloudMap, w: usize, h: usize) -> usize {
-    let fastest = [a, b]
-        .iter()
-        .filter_map(|m| m.structure.as_ref())
-        .flat_map(|s| s.wind_u.iter().zip(&s.wind_v))
-        .flat_map(|(u, v)| {
-            (0..3).map(move |c| {
-                let (x, y) = (
-                    stratus_ingest::structure::sample_to_wind(u[c]),
-                    stratus_ingest::structure::sample_to_wind(v[c]),
-                );
-                (x * x + y * y).sqrt()
-            })
-        })
-        .fold(0.0f64, f64::max);
-    let (Some(t0), Some(t1)) = (a.meta.source.valid_time, b.meta.source.valid_time) else {
-        return 0;
-    };
-    let reach_m = fastest * (t1 - t0).num_seconds().unsigned_abs() as f64;
-    let r = &a.meta.region;
-    let deg_m = EARTH_R.to_radians();
-    let cos = r
-        .south
-        .abs()
-        .max(r.north.abs())
-        .min(89.9)
-        .to_radians()
-        .cos();
-    let px_m = (r.north - r.south) / h as f64 * deg_m;
-    let px_m = px_m.min(r.lon_span() / w as f64 * deg_m * cos);
-    (reach_m / px_m / COARSE_CELL as f64).ceil() as usize
 }
 
 /// Max over a square of `n` cells around each cell.

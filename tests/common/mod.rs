@@ -23,6 +23,27 @@ pub fn sample(rel: &str) -> PathBuf {
         .join(rel)
 }
 
+/// The real Poland series (GFS 0.25°, 2020-08-04 12 UTC, +0/+6/+12 h) ingested as issue 31
+/// measures it: 48–56°N 13–25°E at 480×320, into `dir/pl.json`.
+pub fn poland(dir: &Path) -> PathBuf {
+    let files: Vec<PathBuf> = ["f000", "f006", "f012"]
+        .iter()
+        .map(|f| {
+            sample(&format!(
+                "gfs-series-poland/gfs.20200804.t12z.pgrb2.0p25.{f}"
+            ))
+        })
+        .collect();
+    let out = dir.join("pl.png");
+    let mut args = vec!["ingest"];
+    args.extend(files.iter().map(|f| f.to_str().unwrap()));
+    args.extend_from_slice(&["--region", "48,56,13,25", "--size", "480x320"]);
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    let o = stratus(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("pl.json")
+}
+
 /// Ingest the synthetic sample (30–60°N, 40°W–0°, 160×120, all layers) into `dir/m.png`,
 /// returning the sidecar.
 pub fn synthetic_map(dir: &Path) -> PathBuf {

@@ -1,6 +1,9 @@
 //! Long series made cheaply from a real one: its step maps repeated at new forecast hours, each
 //! step with its own step sidecar (a copy of the real step's with the new hour and valid time,
-//! naming the same images), so each step's sidecar agrees with its entry in the series.
+//! naming the same images), so each step's sidecar agrees with its entry in the series. A step
+//! keeps the real step's motion images (issue 31): step k is real step k mod n and step k + 1
+//! real step k mod n + 1 wherever the real step has a motion, so they are right; where it has
+//! none (the real last step) the interval's motion is estimated at load.
 
 use std::path::{Path, PathBuf};
 
@@ -43,6 +46,10 @@ pub fn repeated(real: &Path, name: &str, n: usize, every_h: f64, mean_winds: boo
             step["map"] = map.into();
             if !mean_winds {
                 step.as_object_mut().unwrap().remove("mean_wind");
+            }
+            if k + 1 == n {
+                // The real step's motion is to the real step after it; the last step has none.
+                step.as_object_mut().unwrap().remove("motion");
             }
             step
         })

@@ -1,6 +1,7 @@
 //! The series sidecar (`NAME.json`, format [`SERIES_FORMAT`]): the run, the region and size
 //! every step shares, the layers, and per step its forecast hour, valid time, the step map's
-//! own sidecar and its layer-wind images. Read with a cap and checked field by field.
+//! own sidecar, its layer-wind images and (issue 31) its motion images to the next step. Read
+//! with a cap and checked field by field.
 
 use std::path::Path;
 
@@ -56,6 +57,25 @@ pub struct SeriesStep {
     /// renderer then decodes the step map for it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean_wind: Option<super::winds::LayerWinds>,
+    /// The guarded motion from this step to the next ([`super::stored`]); `None` on the last
+    /// step, and on every step of a sidecar written before issue 31 (the motion is then
+    /// estimated from the steps when an interval is needed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<StepMotion>,
+}
+
+/// A step's motion images (16-bit RGBA PNG, R/G/B = low/middle/high, A unused): the guarded
+/// motion to the next step on the motion's working grid, east (`u`) and south (`v`) in map
+/// pixels per interval, as (sample − 32768) × `scale`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepMotion {
+    pub u: String,
+    pub v: String,
+    /// The working grid ([`super::motion::work_size`] of the series' size).
+    pub width: u32,
+    pub height: u32,
+    /// Map pixels per interval per unit of the samples.
+    pub scale: f64,
 }
 
 /// File names of a step map's layer-wind images (R/G/B = low/middle/high; docs/ingest.md).
@@ -180,8 +200,44 @@ impl SeriesMeta {
                     }
                 }
             }
+            if let Some(m) = &s.motion {
+                let last = i + 1 == self.steps.len();
+                self.motion_fault(m, last)
+                    .map_or(Ok(()), |f| Err(format!("{at}.motion{f}")))?;
+            }
         }
         Ok(())
+    }
+
+    /// What is wrong with a step's motion entry (a phrase after `steps[i].motion`), if
+    /// anything: names, the working grid's size, the scale (finite, positive, and no motion
+    /// it can encode beyond the map's size per interval), and no motion after the last step.
+    fn motion_fault(&self, m: &StepMotion, last: bool) -> Option<String> {
+        if last {
+            return Some(": the last step has no next step to move to".into());
+        }
+        for (k, n) in [("u", &m.u), ("v", &m.v)] {
+            if !is_plain_name(n) {
+                return Some(format!(
+                    ".{k}: {n:?} is not a file name in the sidecar's folder"
+                ));
+            }
+        }
+        let (w, h) = super::motion::work_size(self.width as usize, self.height as usize);
+        if (m.width as usize, m.height as usize) != (w, h) {
+            return Some(format!(
+                ": {}x{} is not the motion grid of a {}x{} map ({w}x{h})",
+                m.width, m.height, self.width, self.height
+            ));
+        }
+        let most = f64::from(self.width.max(self.height));
+        if !(m.scale.is_finite() && m.scale > 0.0 && m.scale * 32768.0 <= most) {
+            return Some(format!(
+                ".scale: {} is not finite and positive, or encodes motion beyond the map's {most} px per interval",
+                crate::meta::show_num(m.scale)
+            ));
+        }
+        None
     }
 }
 
@@ -241,6 +297,7 @@ mod tests {
                 v: format!("{name}.wind-v.png"),
             }),
             mean_wind: Some([[1.5, -0.5], [6.0, 0.25], [12.0, 3.0]]),
+            motion: None,
         };
         SeriesMeta {
             format: SERIES_FORMAT.into(),
@@ -306,6 +363,35 @@ mod tests {
         assert!(!text.contains("mean_wind"), "{text}");
         assert_eq!(serde_json::from_str::<SeriesMeta>(&text).unwrap(), old);
         old.validate().unwrap();
+        // The motion entry: on a step with a next one, on the working grid, a sane scale.
+        let motion = |scale: f64, w: u32| StepMotion {
+            u: "m-f000.motion-u.png".into(),
+            v: "m-f000.motion-v.png".into(),
+            width: w,
+            height: 32,
+            scale,
+        };
+        let mut ok = m.clone();
+        ok.steps[0].motion = Some(motion(0.001, 64));
+        ok.validate().unwrap();
+        let back: SeriesMeta = serde_json::from_str(&serde_json::to_string(&ok).unwrap()).unwrap();
+        assert_eq!(back, ok);
+        for (k, mo, says) in [
+            (1, motion(0.001, 64), "steps[1].motion: the last step"),
+            (
+                0,
+                motion(0.001, 32),
+                "steps[0].motion: 32x32 is not the motion grid",
+            ),
+            (0, motion(0.0, 64), "steps[0].motion.scale"),
+            (0, motion(f64::NAN, 64), "steps[0].motion.scale"),
+            (0, motion(1.0, 64), "steps[0].motion.scale"),
+        ] {
+            let mut bad = m.clone();
+            bad.steps[k].motion = Some(mo);
+            let e = bad.validate().unwrap_err();
+            assert!(e.contains(says), "{e}");
+        }
         let mut bad = m;
         bad.steps.clear();
         assert!(bad.validate().unwrap_err().contains("steps"));

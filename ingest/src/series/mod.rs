@@ -1,7 +1,10 @@
 //! A CloudMap series: the maps of several forecast steps of one run (DESIGN §9), their series
 //! sidecar ([`meta`]), which input files make one ([`inputs`]), how it is written ([`write`]),
 //! and the weather at any moment of it ([`Series::at`]: the two steps around the moment
-//! carried along their layer winds and blended, [`advect`]).
+//! moved along the guarded motion between them and blended, [`motion`]; the motion stored
+//! with the series, [`stored`], or for a series written before it, estimated from the two
+//! steps). The layer-wind blend ([`advect`]) stays as the reference `verify-interpolation`
+//! and `verify-advection` compare with.
 //!
 //! [`Series::load`] reads the series sidecar and checks every step's sidecar, PNG and
 //! structure images are there and match the series; step maps themselves are decoded only
@@ -12,6 +15,7 @@ pub mod check;
 pub mod inputs;
 pub mod meta;
 pub mod motion;
+pub mod stored;
 pub mod winds;
 pub mod write;
 
@@ -33,6 +37,25 @@ pub struct Series {
     pub meta: SeriesMeta,
     /// Each step's map sidecar (same order as `meta.steps`).
     pub step_metas: Vec<CloudMapMeta>,
+    /// Where the step maps come from when they are not PNG sets beside the sidecar (a Zarr
+    /// store, `crate::zarr`); `None`: the step sidecars' PNG sets.
+    pub loader: Option<StepLoader>,
+}
+
+/// Reads step `k`'s map of a series held elsewhere than in PNG sets (a Zarr store).
+#[derive(Clone)]
+pub struct StepLoader(std::sync::Arc<dyn Fn(usize) -> Result<CloudMap> + Send + Sync>);
+
+impl StepLoader {
+    pub fn new(f: impl Fn(usize) -> Result<CloudMap> + Send + Sync + 'static) -> StepLoader {
+        StepLoader(std::sync::Arc::new(f))
+    }
+}
+
+impl std::fmt::Debug for StepLoader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("StepLoader")
+    }
 }
 
 /// Whether `path` is a series sidecar (its `format` says so). A file that cannot be read or
@@ -113,6 +136,9 @@ impl Series {
             if let Some(w) = &s.winds {
                 images.extend([dir.join(&w.u), dir.join(&w.v)]);
             }
+            if let Some(mo) = &s.motion {
+                images.extend([dir.join(&mo.u), dir.join(&mo.v)]);
+            }
             for p in &images {
                 match std::fs::metadata(p) {
                     Ok(m) if m.is_file() => {}
@@ -126,12 +152,52 @@ impl Series {
                     Err(_) => return Err(at(format!("{}: missing", shown(p)))),
                 }
             }
+            if let Some(mo) = &s.motion {
+                stored::check(dir, mo).map_err(at)?;
+            }
             step_metas.push(m);
+        }
+        let n = meta.steps.len();
+        if meta.steps[..n - 1].iter().any(|s| s.motion.is_none()) {
+            tracing::info!(
+                "{}: no motion images (a series sidecar from before issue 31): each interval's motion is estimated from its two steps when first needed",
+                shown(path)
+            );
         }
         Ok(Series {
             path: path.to_path_buf(),
             meta,
             step_metas,
+            loader: None,
+        })
+    }
+
+    /// A series held elsewhere (a Zarr store at `path`): its sidecar `meta` and step sidecars
+    /// checked as [`Series::load`] checks them, its step maps read by `loader`.
+    pub fn with_loader(
+        path: &Path,
+        meta: SeriesMeta,
+        step_metas: Vec<CloudMapMeta>,
+        loader: StepLoader,
+    ) -> Result<Series> {
+        meta.validate()
+            .map_err(|e| IngestError::series(path, format!("series: {e}")))?;
+        for (s, m) in meta.steps.iter().zip(&step_metas) {
+            if let Some(fault) = check::step_fault(&meta, s, m, step_metas.first()) {
+                return Err(IngestError::series(
+                    path,
+                    format!("step {}: {fault}", meta::show_hour(s.forecast_hour)),
+                ));
+            }
+        }
+        if step_metas.len() != meta.steps.len() {
+            return Err(IngestError::series(path, "not one map per step"));
+        }
+        Ok(Series {
+            path: path.to_path_buf(),
+            meta,
+            step_metas,
+            loader: Some(loader),
         })
     }
 
@@ -167,9 +233,10 @@ impl Series {
         })?;
         let sidecar = folder(&self.path).join(&s.map);
         // The step's sidecar was read and checked by `load`: only its images are read now.
-        let read = match self.step_metas.get(k) {
-            Some(m) => CloudMap::load_with(&sidecar, m.clone()),
-            None => CloudMap::load(&sidecar),
+        let read = match (&self.loader, self.step_metas.get(k)) {
+            (Some(l), _) => (l.0)(k),
+            (None, Some(m)) => CloudMap::load_with(&sidecar, m.clone()),
+            (None, None) => CloudMap::load(&sidecar),
         };
         read.map_err(|e| {
             IngestError::series(
@@ -179,9 +246,44 @@ impl Series {
         })
     }
 
+    /// The guarded motion from step `k` to step `k + 1` (their maps `a`, `b`): the stored one
+    /// ([`stored::read`]), else — a series sidecar from before issue 31 — estimated from `a`
+    /// and `b` ([`motion::estimate`], seconds for a large map), in the stored form either way
+    /// ([`motion::Motion::baked`]).
+    pub fn motion(&self, k: usize, a: &CloudMap, b: &CloudMap) -> Result<motion::Motion> {
+        let steps = &self.meta.steps;
+        let (Some(s0), Some(s1)) = (steps.get(k), steps.get(k + 1)) else {
+            return Err(IngestError::series(
+                &self.path,
+                format!("no interval after step {k} (it has {} steps)", steps.len()),
+            ));
+        };
+        if let Some(m) = &s0.motion {
+            return stored::read(folder(&self.path), m, &self.meta).map_err(|e| {
+                IngestError::series(
+                    &self.path,
+                    format!("step {}: {e}", meta::show_hour(s0.forecast_hour)),
+                )
+            });
+        }
+        let interval = (s1.valid_time - s0.valid_time).num_milliseconds() as f64 / 1000.0;
+        let t = std::time::Instant::now();
+        let m = motion::estimate(a, b, interval)?.baked();
+        tracing::debug!(
+            "motion {} → {} estimated in {:.1} s",
+            meta::show_hour(s0.forecast_hour),
+            meta::show_hour(s1.forecast_hour),
+            t.elapsed().as_secs_f64()
+        );
+        Ok(m)
+    }
+
     /// The weather at `time`: the step map where a step is valid then; between two steps their
-    /// semi-Lagrangian blend ([`blend`]); before the first or after the last step that step
-    /// unchanged (the forecast says nothing beyond, so the weather is held).
+    /// blend along the guarded motion between them ([`Series::motion`], [`motion::blend`]:
+    /// growth and decay stay a cross-fade); before the first or after the last step that step
+    /// unchanged. Held, not extrapolated along the last motion: the forecast says nothing
+    /// beyond its steps, and a motion estimated over one interval carried further would move
+    /// cloud that the next step (there is none) might have cleared.
     pub fn at(&self, time: DateTime<Utc>) -> Result<CloudMap> {
         let steps = &self.meta.steps;
         let after = steps.iter().position(|s| s.valid_time > time);
@@ -211,15 +313,23 @@ impl Series {
         let interval = (t1 - t0).num_milliseconds() as f64 / 1000.0;
         let w = (time - t0).num_milliseconds() as f64 / 1000.0 / interval;
         let (a, b) = (self.step_map(k)?, self.step_map(k + 1)?);
-        blend(&a, &b, w, interval).map_err(|e| IngestError::series(&self.path, e))
+        let m = self.motion(k, &a, &b)?;
+        motion::blend(&a, &b, w, interval, &m).map_err(|e| IngestError::series(&self.path, e))
     }
 
-    /// Every file the series reads: its step sidecars, PNGs, structure and ground images.
+    /// Every file the series reads: its step sidecars, PNGs, structure, ground and motion
+    /// images.
     pub fn files(&self) -> Vec<PathBuf> {
+        if self.loader.is_some() {
+            return vec![self.path.clone()];
+        }
         let dir = folder(&self.path);
         let mut v = Vec::new();
         for (s, m) in self.meta.steps.iter().zip(&self.step_metas) {
             let sidecar = dir.join(&s.map);
+            if let Some(mo) = &s.motion {
+                v.extend([dir.join(&mo.u), dir.join(&mo.v)]);
+            }
             v.push(m.image_path(&sidecar));
             v.extend(m.extra_images.iter().map(|x| dir.join(&x.image)));
             if let Some(g) = &m.ground {

@@ -203,6 +203,52 @@ impl LayerMotion {
         )
     }
 
+    /// The guarded motion g·m at each working-grid pixel, map pixels per interval (east,
+    /// south): what is stored with a series and put on the GPU.
+    pub fn guarded_px(&self) -> (Vec<f32>, Vec<f32>) {
+        let (sx, sy) = (
+            self.u.w as f32 / self.map_w as f32,
+            self.u.h as f32 / self.map_h as f32,
+        );
+        let g = |k: usize| {
+            let (i, j) = (k % self.u.w, k / self.u.w);
+            let (gx, gy) = (
+                (i as f32 + 0.5) * self.gate.w as f32 / self.u.w as f32 - 0.5,
+                (j as f32 + 0.5) * self.gate.h as f32 / self.u.h as f32 - 0.5,
+            );
+            self.gate.sample(gx, gy)
+        };
+        (0..self.u.v.len())
+            .map(|k| (g(k) * self.u.v[k] / sx, g(k) * self.v.v[k] / sy))
+            .unzip()
+    }
+
+    /// A layer's motion from its guarded field (map pixels per interval on a `w`×`h` working
+    /// grid, as [`LayerMotion::guarded_px`] gives it); the guard is then 1 everywhere.
+    pub fn from_guarded_px(
+        (kind, channel): (LayerKind, usize),
+        (w, h, wrap): (usize, usize, bool),
+        (u, v): (Vec<f32>, Vec<f32>),
+        (map_w, map_h): (usize, usize),
+    ) -> LayerMotion {
+        let (sx, sy) = (w as f32 / map_w as f32, h as f32 / map_h as f32);
+        let grid = |v: Vec<f32>, s: f32| Grid {
+            w,
+            h,
+            wrap,
+            v: v.into_iter().map(|x| x * s).collect(),
+        };
+        LayerMotion {
+            kind,
+            channel,
+            u: grid(u, sx),
+            v: grid(v, sy),
+            gate: Grid::filled(w, h, wrap, 1.0),
+            map_w,
+            map_h,
+        }
+    }
+
     /// Mean guarded displacement over the layer, map pixels per interval, and the mean guard.
     pub fn summary(&self) -> (f32, f32, f32) {
         let n = self.u.v.len() as f32;
@@ -251,8 +297,40 @@ impl Motion {
         Motion { layers }
     }
 
-    fn layer(&self, c: usize) -> Option<&LayerMotion> {
+    /// The layer of channel `c`, if it has one.
+    pub fn layer(&self, c: usize) -> Option<&LayerMotion> {
         self.layers.iter().find(|l| l.channel == c)
+    }
+
+    /// The same motion with each layer's guard multiplied in (guard 1 everywhere): what a
+    /// stored motion reads back as, so the blend of a motion estimated at load and of one
+    /// read from the series is made by the same arithmetic (and the GPU's, which samples the
+    /// guarded field, agrees with both).
+    pub fn baked(&self) -> Motion {
+        let layers = self
+            .layers
+            .iter()
+            .map(|l| {
+                LayerMotion::from_guarded_px(
+                    (l.kind, l.channel),
+                    (l.u.w, l.u.h, l.u.wrap),
+                    l.guarded_px(),
+                    (l.map_w, l.map_h),
+                )
+            })
+            .collect();
+        Motion { layers }
+    }
+
+    /// The largest guarded displacement of any layer, map pixels per interval.
+    pub fn max_shift_px(&self) -> f32 {
+        self.layers
+            .iter()
+            .flat_map(|l| {
+                let (u, v) = l.guarded_px();
+                u.into_iter().zip(v).map(|(x, y)| x.hypot(y))
+            })
+            .fold(0.0, f32::max)
     }
 }
 
@@ -277,6 +355,12 @@ fn work_factor(w: usize, h: usize) -> usize {
         f += 1;
     }
     f
+}
+
+/// The working grid a `w`×`h` map's motion is estimated (and stored) on.
+pub fn work_size(w: usize, h: usize) -> (usize, usize) {
+    let f = work_factor(w, h);
+    (w.div_ceil(f), h.div_ceil(f))
 }
 
 /// `a` warped by the flow: a(x − m(x)).

@@ -240,6 +240,7 @@ fn a_series_loads_blends_between_steps_and_refuses_missing_maps() {
                 .into(),
             winds: None,
             mean_wind: None,
+            motion: None,
         });
     }
     let meta = SeriesMeta {

@@ -1,5 +1,7 @@
 //! Writing a series: every step map (`NAME-fHHH.png`, its sidecar and structure images, as a
-//! single-file ingest writes them) and the series sidecar (`NAME.json`) are made in a staging
+//! single-file ingest writes them), every step's motion to the next (`NAME-fHHH.motion-u/v.png`,
+//! [`super::stored`], estimated from the two step maps just written) and the series sidecar
+//! (`NAME.json`) are made in a staging
 //! folder beside the output, then renamed into place together, the series sidecar last
 //! ([`crate::output::commit_staged`]). An error at any point leaves the folder as it was.
 
@@ -14,7 +16,10 @@ use crate::output::{check_output, commit_staged, ensure_not_input, write_atomic,
 use crate::pipeline::{IngestOptions, Plan};
 
 use super::inputs::StepSource;
-use super::meta::{hour_tag, SeriesLayer, SeriesMeta, SeriesStep, StepWinds, SERIES_FORMAT};
+use super::meta::{
+    hour_tag, SeriesLayer, SeriesMeta, SeriesStep, StepMotion, StepWinds, SERIES_FORMAT,
+};
+use super::stored::motion_paths;
 use super::winds::{step_mean_wind, LayerWinds};
 
 /// The step map of `out` (`DIR/NAME.png`) at `hour`: `DIR/NAME-fHHH.png`.
@@ -27,13 +32,17 @@ pub fn step_png(out: &Path, hour: f64) -> PathBuf {
 }
 
 /// Every file a series written to `out` may consist of: per step its extra images, ground
-/// images (when its forecast has orography), PNG and sidecar, then the series sidecar (`out`
-/// with `.json`), in commit order.
+/// images (when its forecast has orography), motion images (every step but the last), PNG and
+/// sidecar, then the series sidecar (`out` with `.json`), in commit order.
 pub fn series_outputs(out: &Path, steps: &[StepSource]) -> Vec<PathBuf> {
     let mut v = Vec::new();
-    for s in steps {
+    for (k, s) in steps.iter().enumerate() {
         let png = step_png(out, s.hour);
         v.extend(ExtraRole::ALL.iter().map(|&r| extra_path(&png, r)));
+        if k + 1 < steps.len() {
+            let (u, mv) = motion_paths(&png);
+            v.extend([u, mv]);
+        }
         let (surface, water) = ground_paths(&png);
         v.extend([surface, water]);
         v.push(png.clone());
@@ -86,7 +95,8 @@ pub fn write_series(
         );
         metas.push((load_meta(&sidecar)?, s, step_mean_wind(&sidecar)?));
     }
-    let meta = series_meta(&metas, first)?;
+    let motions = write_motions(out, steps, &staged)?;
+    let meta = series_meta(&metas, &motions, first)?;
     let json = serde_json::to_vec_pretty(&meta).map_err(|e| IngestError::write(&series_json, e))?;
     write_atomic(&staged(&series_json), |w| {
         use std::io::Write;
@@ -109,18 +119,57 @@ pub fn write_series(
     Ok((series_json, meta))
 }
 
+/// The motion from each step to the next, estimated from the step maps staged (decoded once
+/// each) and written beside them ([`super::stored`]); `None` for the last step.
+fn write_motions(
+    out: &Path,
+    steps: &[StepSource],
+    staged: &dyn Fn(&Path) -> PathBuf,
+) -> Result<Vec<Option<StepMotion>>> {
+    let load = |s: &StepSource| {
+        crate::cloudmap::CloudMap::load(&staged(&step_png(out, s.hour)).with_extension("json"))
+    };
+    let mut v = Vec::with_capacity(steps.len());
+    let mut earlier = match steps.first() {
+        Some(s) if steps.len() > 1 => Some(load(s)?),
+        _ => None,
+    };
+    for pair in steps.windows(2) {
+        let (a, later) = (earlier.take(), load(&pair[1])?);
+        let a = a.ok_or_else(|| IngestError::BadMap("a series step was not loaded".into()))?;
+        let t = std::time::Instant::now();
+        let interval_s = (pair[1].hour - pair[0].hour) * 3600.0;
+        let motion = super::motion::estimate(&a, &later, interval_s)?;
+        let (u, mv) = motion_paths(&staged(&step_png(out, pair[0].hour)));
+        v.push(Some(super::stored::write(&motion, (&u, &mv))?));
+        tracing::info!(
+            "series motion {} → {}: estimated in {:.1} s",
+            super::meta::show_hour(pair[0].hour),
+            super::meta::show_hour(pair[1].hour),
+            t.elapsed().as_secs_f64()
+        );
+        earlier = Some(later);
+    }
+    v.push(None);
+    Ok(v)
+}
+
 /// A step map written: its sidecar, its input and its region-mean layer winds.
 type StepWritten<'a> = (CloudMapMeta, &'a StepSource, Option<LayerWinds>);
 
-/// The series sidecar of the step maps written.
-fn series_meta(metas: &[StepWritten], first: &StepSource) -> Result<SeriesMeta> {
+/// The series sidecar of the step maps written, each with its motion to the next.
+fn series_meta(
+    metas: &[StepWritten],
+    motions: &[Option<StepMotion>],
+    first: &StepSource,
+) -> Result<SeriesMeta> {
     let (m0, _, _) = &metas[0];
     let reference_time = m0
         .source
         .reference_time
         .ok_or_else(|| IngestError::series(&first.path, "has no readable reference time (run)"))?;
     let mut steps = Vec::with_capacity(metas.len());
-    for (m, s, mean_wind) in metas {
+    for ((m, s, mean_wind), motion) in metas.iter().zip(motions) {
         let kinds = |x: &CloudMapMeta| x.layers.iter().map(|l| l.kind).collect::<Vec<_>>();
         if kinds(m) != kinds(m0) {
             return Err(IngestError::series(
@@ -146,6 +195,7 @@ fn series_meta(metas: &[StepWritten], first: &StepSource) -> Result<SeriesMeta> 
             map: name_of(&sidecar),
             winds,
             mean_wind: *mean_wind,
+            motion: motion.clone(),
         });
     }
     let meta = SeriesMeta {

@@ -2,7 +2,8 @@
 //! extension chooses the format: `.png` writes the PNG + `.json` sidecar pair, `.tif`/`.tiff`
 //! one georeferenced, tiled GeoTIFF with overviews (no sidecar: its metadata is inside).
 //! Several steps of one run (several files, or one file holding several) make a series
-//! (`series`): one map per step and the series sidecar.
+//! (`series`): one map per step and the series sidecar. `.zarr` writes one Zarr v3 store of
+//! one step or several (`store`; `--append` adds later steps of its run).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -15,6 +16,7 @@ use super::files::check_out;
 use super::options::{progress_bar, IngestOpts};
 
 mod series;
+mod store;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -25,10 +27,15 @@ pub struct Args {
     pub files: Vec<PathBuf>,
     #[command(flatten)]
     pub ingest: IngestOpts,
-    /// Output: MAP.png (the sidecar goes next to it with a .json extension) or MAP.tif
-    /// (a GeoTIFF in EPSG:4326, tiled, with overviews; no sidecar).
+    /// Output: MAP.png (the sidecar goes next to it with a .json extension), MAP.tif
+    /// (a GeoTIFF in EPSG:4326, tiled, with overviews; no sidecar) or STORE.zarr (a Zarr v3
+    /// store of one step or a series, which xarray opens; docs/zarr.md).
     #[arg(long)]
     pub out: PathBuf,
+    /// With --out STORE.zarr: add the files' steps (later steps of the store's run, same
+    /// region and size) to the existing store.
+    #[arg(long)]
+    pub append: bool,
 }
 
 /// The output formats, chosen by the extension.
@@ -42,11 +49,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let format = match ext.map(str::to_ascii_lowercase).as_deref() {
         Some("png") => Format::Png,
         Some("tif" | "tiff") => Format::GeoTiff,
+        Some("zarr") => return store::run(&args),
         _ => anyhow::bail!(
-            "{}: output must be a .png file (CloudMap PNG + .json sidecar) or a .tif/.tiff file (GeoTIFF)",
+            "{}: output must be a .png file (CloudMap PNG + .json sidecar), a .tif/.tiff file (GeoTIFF) or a .zarr store",
             shown(&args.out)
         ),
     };
+    if args.append {
+        anyhow::bail!(
+            "{}: --append adds steps to a Zarr store; give --out STORE.zarr",
+            shown(&args.out)
+        );
+    }
     if let Some(steps) = series::steps_of(&args.files)? {
         if !matches!(format, Format::Png) {
             anyhow::bail!(

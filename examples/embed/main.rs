@@ -1,0 +1,261 @@
+//! A small wgpu host with Stratus' clouds inside it (render::embed, issue 33): the host opens
+//! its own device, draws its own terrain mesh and an aircraft-sized box near the camera with a
+//! reversed-Z depth buffer, then hands Stratus its device, camera, colour and depth, and the
+//! clouds are marched up to the host's depth and blended over its colour.
+//!
+//! `cargo run --release --example embed -- --out embed.png [--size 640x360] [--map m.json]
+//!  [--frames N] [--compare] [--sky]`
+//!
+//! Without `--map`, a made-up broken low deck (1.4–2.2 km) over the host's hills near 47°N 8°E.
+//! `--frames N` times N embedded frames; `--compare` also times Stratus' own frame
+//! (`Renderer::encode`, what `stratus render` records, without its read-back) at the same view
+//! and size on the same kind of device. `--sky`: Stratus' own sky where the host drew nothing
+//! (beyond its 30 km of terrain), instead of the host's flat blue.
+
+mod host;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{anyhow, Context};
+use chrono::{DateTime, Utc};
+use glam::Vec3;
+use host::Host;
+use stratus::render::embed::{
+    CloudExposure, DepthConvention, EmbedOptions, EmbeddedClouds, GeoAnchor, HostCamera,
+    HostFormats, HostFrame,
+};
+use stratus::render::{Gpu, Renderer, View};
+use stratus_ingest::cloudmap::CloudMap;
+use stratus_ingest::meta::LayerKind;
+use stratus_ingest::region::Region;
+
+const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+const ANCHOR: GeoAnchor = GeoAnchor {
+    lat_deg: 47.0,
+    lon_deg: 8.0,
+    alt_m: 0.0,
+};
+
+struct Args {
+    out: Option<PathBuf>,
+    size: (u32, u32),
+    map: Option<PathBuf>,
+    frames: u32,
+    compare: bool,
+    sky: bool,
+}
+
+fn args() -> anyhow::Result<Args> {
+    let mut a = Args {
+        out: None,
+        size: (640, 360),
+        map: None,
+        frames: 1,
+        compare: false,
+        sky: false,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(k) = it.next() {
+        let mut value = || it.next().ok_or_else(|| anyhow!("{k} needs a value"));
+        match k.as_str() {
+            "--out" => a.out = Some(value()?.into()),
+            "--map" => a.map = Some(value()?.into()),
+            "--frames" => a.frames = value()?.parse().context("--frames")?,
+            "--compare" => a.compare = true,
+            "--sky" => a.sky = true,
+            "--size" => {
+                let v = value()?;
+                let (w, h) = v.split_once('x').ok_or_else(|| anyhow!("--size WxH"))?;
+                a.size = (w.parse()?, h.parse()?);
+            }
+            other => return Err(anyhow!("unknown argument {other}")),
+        }
+    }
+    Ok(a)
+}
+
+fn time() -> DateTime<Utc> {
+    DateTime::parse_from_rfc3339("2024-06-21T09:30:00Z")
+        .map(|t| t.with_timezone(&Utc))
+        .unwrap_or_default()
+}
+
+/// A broken low deck over the host's hills: coverage from a few smooth waves.
+fn made_up_map() -> CloudMap {
+    let r = Region {
+        south: 46.0,
+        north: 48.0,
+        west: 7.0,
+        east: 9.0,
+    };
+    CloudMap::from_fn(
+        r,
+        256,
+        256,
+        &[(LayerKind::Low, 1400.0, 2200.0)],
+        time(),
+        |lat, lon| {
+            // Cells a few km across (1° of latitude is 111 km).
+            let w = (lat * 70.0).sin() * (lon * 50.0 + 1.0).cos()
+                + 0.5 * (lat * 150.0 + lon * 110.0).sin();
+            [(0.42 + 0.3 * w).clamp(0.0, 1.0), 0.0, 0.0]
+        },
+    )
+}
+
+/// The host's camera: 2.6 km up, looking north and a little down over the deck.
+fn camera(size: (u32, u32)) -> HostCamera {
+    let eye = Vec3::new(0.0, 2600.0, 0.0);
+    HostCamera::look_at(
+        ANCHOR,
+        eye,
+        eye + Vec3::new(0.15, -0.35, -1.0),
+        Vec3::Y,
+        55.0,
+        size.0 as f32 / size.1 as f32,
+        (0.5, f32::INFINITY),
+        DepthConvention::ReversedZ,
+    )
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = args()?;
+    let map = match &a.map {
+        Some(p) => CloudMap::load(p).with_context(|| format!("reading {}", p.display()))?,
+        None => made_up_map(),
+    };
+    // The host: its own device, targets and scene.
+    let (device, queue) = host::open_device().map_err(|e| anyhow!(e))?;
+    let host = Host::new(device, queue, a.size, COLOR, DEPTH);
+    let sun = Vec3::new(0.5, 0.6, 0.3);
+    let terrain = host.mesh(&host::terrain(160, 30_000.0, sun));
+    // An aircraft-sized box (36 m span, 6 m high, 38 m long) 160 m ahead, a little below.
+    let aircraft = host.mesh(&host::cuboid(
+        Vec3::new(30.0, 2560.0, -160.0),
+        Vec3::new(18.0, 3.0, 19.0),
+        [0.75, 0.12, 0.08],
+        sun,
+    ));
+    // Stratus on the host's device.
+    let mut clouds = EmbeddedClouds::new(
+        &host.device,
+        &host.queue,
+        &map,
+        HostFormats {
+            color: COLOR,
+            depth: DEPTH,
+        },
+        EmbedOptions {
+            exposure: CloudExposure::Stratus,
+            sky: a.sky,
+            ..Default::default()
+        },
+    )?;
+    let cam = camera(a.size);
+    let mut ms = Vec::new();
+    for _ in 0..a.frames.max(1) {
+        let start = Instant::now();
+        let mut enc = host.device.create_command_encoder(&Default::default());
+        host.draw(
+            &mut enc,
+            cam.view_projection(),
+            cam.depth,
+            &[&terrain, &aircraft],
+            [0.30, 0.48, 0.80],
+        );
+        clouds.encode(
+            &mut enc,
+            &HostFrame {
+                camera: &cam,
+                color: &host.color_view,
+                depth: &host.depth_view,
+                time: time(),
+            },
+        )?;
+        host.queue.submit([enc.finish()]);
+        host.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow!("{e}"))?;
+        ms.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    report("embedded frame (host + clouds)", &ms);
+    if let Some(out) = &a.out {
+        let px = host.read_color();
+        let bytes: Vec<u8> = px
+            .iter()
+            .flat_map(|p| p.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8))
+            .collect();
+        let img = image::RgbaImage::from_raw(a.size.0, a.size.1, bytes)
+            .ok_or_else(|| anyhow!("picture size"))?;
+        img.save(out)
+            .with_context(|| format!("writing {}", out.display()))?;
+        eprintln!("wrote {}", out.display());
+    }
+    if a.compare {
+        compare(&map, &cam, &a, &clouds)?;
+    }
+    Ok(())
+}
+
+/// Stratus' own frame at the same view and size: `Renderer::encode` into a target of the same
+/// format, submitted and waited for, as many frames.
+fn compare(
+    map: &CloudMap,
+    cam: &HostCamera,
+    a: &Args,
+    clouds: &EmbeddedClouds,
+) -> anyhow::Result<()> {
+    let mut r = Renderer::new(Gpu::new(None)?, map);
+    let view = View::Perspective(cam.to_stratus(a.size.0, a.size.1)?);
+    let mut settings = clouds.settings.clone();
+    settings.time = time();
+    let target = r.gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("own frame"),
+        size: wgpu::Extent3d {
+            width: a.size.0,
+            height: a.size.1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: COLOR,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let tv = target.create_view(&Default::default());
+    let mut ms = Vec::new();
+    for _ in 0..a.frames.max(1) {
+        let start = Instant::now();
+        let mut enc = r.gpu.device.create_command_encoder(&Default::default());
+        r.encode(
+            &mut enc, &view, a.size.0, a.size.1, &settings, &tv, COLOR, a.size.0,
+        )?;
+        r.gpu.queue.submit([enc.finish()]);
+        r.gpu.wait()?;
+        ms.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    report("Stratus' own frame (Renderer::encode)", &ms);
+    Ok(())
+}
+
+/// Print the frames' times; the first (pipelines compiled, light volume made) apart.
+fn report(what: &str, ms: &[f64]) {
+    let first = ms.first().copied().unwrap_or(0.0);
+    let rest = &ms[1.min(ms.len())..];
+    if rest.is_empty() {
+        println!("{what}: first {first:.0} ms");
+        return;
+    }
+    let mut sorted = rest.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    println!(
+        "{what}: first {first:.0} ms, then median {:.0} ms (min {:.0}, max {:.0}, {} frames)",
+        sorted[sorted.len() / 2],
+        sorted[0],
+        sorted[sorted.len() - 1],
+        rest.len()
+    );
+}

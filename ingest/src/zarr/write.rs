@@ -1,0 +1,456 @@
+//! Writing a store. Each step is ingested as the PNG set would be (`series::write`, into a
+//! private staging folder) and that map's samples go into the store, so the store holds the
+//! PNG map's values exactly.
+//!
+//! - [`create`]: the whole store is built inside the staging folder, then renamed into place
+//!   under the output's lock ([`crate::output::lock_output`]); an existing store is never
+//!   replaced (`--append` adds to one).
+//! - [`append`]: under the store's lock, the store is read again, the new steps are checked
+//!   against its run, region, size and layers and must come after its last step; then the
+//!   new time indices' chunks are written (each file atomically), then every array's
+//!   `zarr.json`, the group's last. A reader meanwhile sees the old steps (the group's step
+//!   list says how many there are); racing appends run one after the other.
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+use crate::cloudmap::CloudMap;
+use crate::error::{shown, Result};
+use crate::forecast::LevelSelect;
+use crate::lattice::StructureGrid;
+use crate::meta::{format_time, CloudMapMeta};
+use crate::output::{ensure_not_input, lock_output, write_atomic, StagingDir};
+use crate::pipeline::IngestOptions;
+use crate::series::inputs::StepSource;
+use crate::series::write::write_series;
+use crate::series::{meta::show_hour, Series, SeriesMeta};
+
+use super::array::{encode_chunk, ArrayMeta, Dtype};
+use super::vars::{self, planes, Grid, VARS};
+use super::{fault, Store, CHUNK_SIDE, SERIES_ATTR, STEPS_ATTR, STORE_FORMAT};
+
+/// What a write did.
+#[derive(Debug, Clone)]
+pub struct Written {
+    pub path: PathBuf,
+    /// The store's series after the write.
+    pub series: SeriesMeta,
+    /// Steps this write added.
+    pub added: usize,
+}
+
+/// How a file of the store is put down: straight into the staging folder, or atomically
+/// into a live store.
+type Put<'a> = &'a (dyn Fn(&Path, &[u8]) -> Result<()> + Sync);
+
+fn put_staged(p: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(d) = p.parent() {
+        std::fs::create_dir_all(d).map_err(|e| crate::error::IngestError::write(d, e))?;
+    }
+    std::fs::write(p, bytes).map_err(|e| crate::error::IngestError::write(p, e))
+}
+
+fn put_atomic(p: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(d) = p.parent() {
+        std::fs::create_dir_all(d).map_err(|e| crate::error::IngestError::write(d, e))?;
+    }
+    write_atomic(p, |w| {
+        use std::io::Write;
+        w.write_all(bytes).map_err(|e| e.to_string())
+    })
+}
+
+/// Ingest `steps` as PNG sets in a staging folder beside `out`; the series read back.
+fn ingest_steps(
+    out: &Path,
+    steps: &[StepSource],
+    select: LevelSelect,
+    opts: &IngestOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(StagingDir, Series)> {
+    let inputs: Vec<&Path> = steps.iter().map(|s| s.path.as_path()).collect();
+    ensure_not_input(out, &inputs)?;
+    let stage = StagingDir::create(out)?;
+    // One name in every store, whatever the store is called: its steps' sidecars (kept in
+    // the group's attributes) name `step-fHHH.png`.
+    let png = stage.path().join("step.png");
+    let (sidecar, _) = write_series(&png, steps, select, opts, progress)?;
+    let series = Series::load(&sidecar)?;
+    Ok((stage, series))
+}
+
+/// A new store at `out` (which must not exist) holding `steps`.
+pub fn create(
+    out: &Path,
+    steps: &[StepSource],
+    select: LevelSelect,
+    opts: &IngestOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Written> {
+    let exists = |out: &Path| {
+        std::fs::symlink_metadata(out).is_ok().then(|| {
+            fault(
+                out,
+                "cannot write: it exists; give --append to add later steps of its run, or remove it first",
+            )
+        })
+    };
+    if let Some(e) = exists(out) {
+        return Err(e);
+    }
+    let (stage, series) = ingest_steps(out, steps, select, opts, progress)?;
+    if let Some(f) = lattice_fault(&series) {
+        return Err(fault(out, format!("cannot write: {f}")));
+    }
+    let staged = stage.path().join("store.zarr");
+    for k in 0..series.meta.steps.len() {
+        write_step(&staged, k, &series.step_map(k)?, &put_staged)?;
+    }
+    write_static_coords(&staged, &series.step_metas[0], &put_staged)?;
+    write_metadata(&staged, &series.meta, &series.step_metas, &put_staged)?;
+    let _lock = lock_output(out)?;
+    if let Some(e) = exists(out) {
+        return Err(e);
+    }
+    std::fs::rename(&staged, out).map_err(|e| crate::error::IngestError::write(out, e))?;
+    Ok(Written {
+        path: out.to_path_buf(),
+        series: series.meta,
+        added: steps.len(),
+    })
+}
+
+/// Add `steps` (later steps of the store's run, region, size and layers) to the store `out`.
+pub fn append(
+    out: &Path,
+    steps: &[StepSource],
+    select: LevelSelect,
+    opts: &IngestOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Written> {
+    // A store that cannot be opened, or of another region or size, is refused before any work.
+    let before = Store::open(out)?;
+    if let Some(f) = region_fault(&before.series, opts) {
+        return Err(fault(out, format!("cannot append: {f}")));
+    }
+    let (_stage, new) = ingest_steps(out, steps, select, opts, progress)?;
+    let _lock = lock_output(out)?;
+    // Read again under the lock: another append may have come first.
+    let store = Store::open(out)?;
+    if let Some(f) = lattice_fault(&new).or_else(|| append_fault(&store, &new)) {
+        return Err(fault(out, format!("cannot append: {f}")));
+    }
+    let t0 = store.steps.len();
+    for k in 0..new.meta.steps.len() {
+        write_step(out, t0 + k, &new.step_map(k)?, &put_atomic)?;
+    }
+    let mut series = store.series.clone();
+    series.steps.extend(new.meta.steps.iter().cloned());
+    let mut metas = store.steps.clone();
+    metas.extend(new.step_metas.iter().cloned());
+    series
+        .validate()
+        .map_err(|e| fault(out, format!("cannot append: {e}")))?;
+    write_metadata(out, &series, &metas, &put_atomic)?;
+    Ok(Written {
+        path: out.to_path_buf(),
+        series,
+        added: new.meta.steps.len(),
+    })
+}
+
+/// Why a store of `s` cannot take maps made with `opts`, if it cannot.
+fn region_fault(s: &SeriesMeta, opts: &IngestOptions) -> Option<String> {
+    let same_region = serde_json::to_value(s.region).ok() == serde_json::to_value(opts.region).ok();
+    (!same_region || s.width != opts.width || s.height != opts.height).then(|| {
+        format!(
+            "the store holds region {} at {}x{}, not --region {} --size {}x{}; a store is one region and size",
+            show_region(&s.region),
+            s.width,
+            s.height,
+            show_region(&opts.region),
+            opts.width,
+            opts.height
+        )
+    })
+}
+
+fn show_region(r: &crate::region::Region) -> String {
+    format!("{},{},{},{}", r.south, r.north, r.west, r.east)
+}
+
+/// Why the series `new` cannot be appended to `store`, if it cannot.
+fn append_fault(store: &Store, new: &Series) -> Option<String> {
+    let (s, n) = (&store.series, &new.meta);
+    if s.reference_time != n.reference_time {
+        return Some(format!(
+            "the store holds the {} run, the input is of the {} run; a store is one run",
+            format_time(&s.reference_time),
+            format_time(&n.reference_time)
+        ));
+    }
+    if s.layers != n.layers {
+        return Some("the input's layers (or their levels) are not the store's".into());
+    }
+    if lattices(&store.steps[0]) != lattices(&new.step_metas[0]) {
+        return Some("the input's structure or ground lattice is not the store's".into());
+    }
+    let last = s.steps.last()?.forecast_hour;
+    let first = n.steps.first()?.forecast_hour;
+    (first <= last).then(|| {
+        format!(
+            "step {} is not after the store's last step {}; append later steps only",
+            show_hour(first),
+            show_hour(last)
+        )
+    })
+}
+
+/// A step's structure and ground lattices (`None`: it has none): one per store.
+fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) {
+    (
+        m.structure_grid.filter(|_| !m.extra_images.is_empty()),
+        m.ground.as_ref().map(|g| g.grid),
+    )
+}
+
+/// The first of `series`' steps whose lattices are not the first step's, as a fault.
+fn lattice_fault(series: &Series) -> Option<String> {
+    let first = lattices(series.step_metas.first()?);
+    let (s, _) = series
+        .meta
+        .steps
+        .iter()
+        .zip(&series.step_metas)
+        .find(|(_, m)| lattices(m) != first)?;
+    Some(format!(
+        "step {} has another structure or ground lattice than the first step; a store holds one",
+        show_hour(s.forecast_hour)
+    ))
+}
+
+/// The lattice of `g` split into chunk (row, column) indices.
+fn chunk_keys(g: &StructureGrid) -> Vec<(usize, usize)> {
+    let c = CHUNK_SIDE as usize;
+    let (h, w) = (g.height as usize, g.width as usize);
+    (0..h.div_ceil(c))
+        .flat_map(|y| (0..w.div_ceil(c)).map(move |x| (y, x)))
+        .collect()
+}
+
+/// Every chunk of step `map` at time index `t`, and its time coordinates.
+fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
+    let c = CHUNK_SIDE as usize;
+    for v in &VARS {
+        let Some(g) = v.grid.of(&map.meta) else {
+            continue;
+        };
+        for l in 0..planes(v) {
+            let Some(plane) = vars::extract(map, v, l) else {
+                continue;
+            };
+            let w = g.width as usize;
+            chunk_keys(&g).par_iter().try_for_each(|&(y, x)| {
+                let mut vals = vec![0u64; c * c];
+                for r in 0..c.min(g.height as usize - y * c) {
+                    let row = (y * c + r) * w;
+                    let n = c.min(w - x * c);
+                    for (k, &s) in plane[row + x * c..row + x * c + n].iter().enumerate() {
+                        vals[r * c + k] = s as u64;
+                    }
+                }
+                let mut idx = vec![t as u64];
+                if v.layered {
+                    idx.push(l as u64);
+                }
+                idx.extend([y as u64, x as u64]);
+                let p = ArrayMeta::chunk_path(&store.join(v.name), &idx);
+                put(&p, &encode_chunk(&vals, v.dtype))
+            })?;
+        }
+    }
+    let m = &map.meta;
+    let reference = m.source.reference_time.unwrap_or_default();
+    let valid = m.source.valid_time.unwrap_or(reference);
+    let minutes = (valid - reference).num_seconds().div_euclid(60);
+    let idx = [t as u64];
+    put(
+        &ArrayMeta::chunk_path(&store.join("time"), &idx),
+        &encode_chunk(&[minutes as u64], Dtype::I64),
+    )?;
+    put(
+        &ArrayMeta::chunk_path(&store.join("forecast_period"), &idx),
+        &encode_chunk(&[m.source.forecast_step_h.to_bits()], Dtype::F64),
+    )
+}
+
+/// The coordinates that do not grow: layer and each lattice's latitudes and longitudes.
+fn write_static_coords(store: &Path, meta: &CloudMapMeta, put: Put) -> Result<()> {
+    put(
+        &ArrayMeta::chunk_path(&store.join("layer"), &[0]),
+        &encode_chunk(&[0, 1, 2], Dtype::U8),
+    )?;
+    for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
+        let Some(g) = grid.of(meta) else { continue };
+        let [lat, lon] = grid.dims();
+        let lats: Vec<u64> = (0..g.height)
+            .map(|j| (g.north - j as f64 * g.dlat).to_bits())
+            .collect();
+        let lons: Vec<u64> = (0..g.width)
+            .map(|i| (g.west + i as f64 * g.dlon).to_bits())
+            .collect();
+        put(
+            &ArrayMeta::chunk_path(&store.join(lat), &[0]),
+            &encode_chunk(&lats, Dtype::F64),
+        )?;
+        put(
+            &ArrayMeta::chunk_path(&store.join(lon), &[0]),
+            &encode_chunk(&lons, Dtype::F64),
+        )?;
+    }
+    Ok(())
+}
+
+/// Every array's `zarr.json` for the steps `metas`, then the group's (last).
+fn write_metadata(
+    store: &Path,
+    series: &SeriesMeta,
+    metas: &[CloudMapMeta],
+    put: Put,
+) -> Result<()> {
+    let json_bytes = |v: &Value| serde_json::to_vec_pretty(v).unwrap_or_default();
+    for (name, a) in array_metas(series, metas) {
+        put(
+            &store.join(name).join("zarr.json"),
+            &json_bytes(&a.to_json()),
+        )?;
+    }
+    put(
+        &store.join("zarr.json"),
+        &json_bytes(&group_json(series, metas)),
+    )
+}
+
+/// The arrays of a store of `metas` (data variables the first step has, and coordinates).
+fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, ArrayMeta)> {
+    let first = &metas[0];
+    let t = metas.len() as u64;
+    let units = format!(
+        "minutes since {}",
+        series.reference_time.format("%Y-%m-%d %H:%M:%S")
+    );
+    let coord = |name: &str, n: u64, chunk: u64, dtype: Dtype| {
+        let a = ArrayMeta {
+            shape: vec![n],
+            chunks: vec![chunk],
+            dtype,
+            dims: vec![if name == "forecast_period" {
+                "time"
+            } else {
+                name
+            }
+            .to_string()],
+            attributes: vars::coordinate_attributes(name, &units),
+        };
+        (name.to_string(), a)
+    };
+    let mut v = vec![
+        coord("time", t, 1, Dtype::I64),
+        coord("forecast_period", t, 1, Dtype::F64),
+        coord("layer", 3, 3, Dtype::U8),
+    ];
+    for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
+        if let Some(g) = grid.of(first) {
+            let [lat, lon] = grid.dims();
+            v.push(coord(lat, g.height as u64, g.height as u64, Dtype::F64));
+            v.push(coord(lon, g.width as u64, g.width as u64, Dtype::F64));
+        }
+    }
+    for var in &VARS {
+        let Some(g) = var.grid.of(first) else {
+            continue;
+        };
+        if var.grid == Grid::Structure && first.extra_images.is_empty() {
+            continue;
+        }
+        let [lat, lon] = var.grid.dims();
+        let (mut shape, mut chunks, mut dims) = (vec![t], vec![1], vec!["time"]);
+        if var.layered {
+            shape.push(3);
+            chunks.push(1);
+            dims.push("layer");
+        }
+        shape.extend([g.height as u64, g.width as u64]);
+        chunks.extend([CHUNK_SIDE, CHUNK_SIDE]);
+        dims.extend([lat, lon]);
+        let mut attributes = vars::attributes(var);
+        attributes.insert("grid_mapping_note".into(), json!("EPSG:4326 pixel centres"));
+        v.push((
+            var.name.to_string(),
+            ArrayMeta {
+                shape,
+                chunks,
+                dtype: var.dtype,
+                dims: dims.into_iter().map(String::from).collect(),
+                attributes,
+            },
+        ));
+    }
+    v
+}
+
+/// The group's `zarr.json`: CF run attributes, and the sidecars this reader rebuilds maps from.
+fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
+    // The motion images between steps (issue 31) are not carried by the store yet: its series
+    // names none, and the reader estimates each interval's motion when it is first blended, as
+    // for a series sidecar from before the motion.
+    let mut series = series.clone();
+    for step in &mut series.steps {
+        step.motion = None;
+    }
+    let rh_cr: serde_json::Map<String, Value> = metas[0]
+        .layers
+        .iter()
+        .map(|l| (l.kind.name().to_string(), json!(l.rh_cr)))
+        .collect();
+    let files: Vec<&str> = metas.iter().map(|m| m.source.file.as_str()).collect();
+    json!({
+        "zarr_format": 3,
+        "node_type": "group",
+        "attributes": {
+            "Conventions": "CF-1.10",
+            "title": "Stratus CloudMap: cloud cover per layer, cloud structure and ground",
+            "institution": "stratus-ingest",
+            "source": "NCEP GFS GRIB2 relative humidity (critical-humidity formula)",
+            "history": format!("written by stratus-ingest {}", env!("CARGO_PKG_VERSION")),
+            "stratus_format": STORE_FORMAT,
+            "format_version": 1,
+            "reference_time": format_time(&series.reference_time),
+            "rh_cr": rh_cr,
+            "source_files": files,
+            "region": series.region,
+            "interpolation": metas[0].interpolation,
+            SERIES_ATTR: &series,
+            STEPS_ATTR: metas,
+        }
+    })
+}
+
+/// For messages: a store's steps as people write them.
+pub fn describe(w: &Written) -> String {
+    format!(
+        "{}: {} step(s) ({}), {}x{} px",
+        shown(&w.path),
+        w.series.steps.len(),
+        w.series
+            .steps
+            .iter()
+            .map(|s| show_hour(s.forecast_hour))
+            .collect::<Vec<_>>()
+            .join(", "),
+        w.series.width,
+        w.series.height
+    )
+}
