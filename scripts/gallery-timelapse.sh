@@ -2,7 +2,7 @@
 # Regenerate docs/gallery/timelapse/: a 6 h time-lapse of the real GFS series (run 2015-09-12
 # 18 UTC, steps +0 h and +6 h) over the North Atlantic and Europe, from a fixed camera above the
 # Bay of Biscay looking north-east (docs/flights/natl-timelapse.json): one frame per simulated
-# 10 minutes (37 frames), the two steps blended on the GPU and carried along the wind.
+# 10 minutes (37 frames), the two steps blended on the GPU along the motion between them.
 #
 # The Sun is held (--sun-dir) and the exposure fixed, so that only the weather changes: over
 # these 6 h the real Sun sets over Europe (the whole view would go dark).
