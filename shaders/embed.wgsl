@@ -71,17 +71,6 @@ fn far_main(@builtin(global_invocation_id) id: vec3<u32>) {
     far_out[id.y * size.x + id.x] = reach;
 }
 
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
-    var o: VsOut;
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    o.pos = vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-    return o;
-}
 
 // Narkowicz's fitted ACES curve (as present.wgsl).
 fn embed_aces(x: vec3<f32>) -> vec3<f32> {

@@ -9,17 +9,6 @@
 // The exposure stage's result for this frame (render::exposure).
 @group(2) @binding(0) var<storage, read> exposure: ExposureState;
 
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
-    var o: VsOut;
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    o.pos = vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-    return o;
-}
 
 // Set by the pipeline from the preset (render::preset::MarchParams::wide_upsample): the
 // upsample's 4×4 footprint that also resolves the march's jitter, else the four nearest.

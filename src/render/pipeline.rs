@@ -2,7 +2,7 @@
 //! stage's module, a cloud stage's feature variants ([`Variant`], compiled per frame's features
 //! as pipeline-overridable constants, [`StagePipelines`]), the pipeline layout of a stage that
 //! evaluates the cloud as the march does ([`cloud_stage`]), and bind groups numbered in order
-//! ([`bind`], [`bind_frame_textures`]). The layouts themselves come from each stage's binding
+//! ([`bind`], [`bind_frame_textures`]), and the full-screen draw ([`fullscreen`]). The layouts themselves come from each stage's binding
 //! table (render::contract).
 
 use std::collections::HashMap;
@@ -201,5 +201,41 @@ pub fn bind<const N: usize>(
         label: Some(label),
         layout,
         entries: &entries,
+    })
+}
+
+/// A render pipeline drawing fullscreen.wgsl's one triangle over a target with `module`'s
+/// `fs_main` (the present stage, embed's composite).
+pub fn fullscreen(
+    dev: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    constants: &[(&str, f64)],
+    target: wgpu::ColorTargetState,
+) -> wgpu::RenderPipeline {
+    dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                ..Default::default()
+            },
+            targets: &[Some(target)],
+        }),
+        multiview_mask: None,
+        cache: None,
     })
 }

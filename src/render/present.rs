@@ -125,30 +125,14 @@ impl PresentPass {
             ("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 }),
             ("WIDE_UPSAMPLE", if wide_upsample { 1.0 } else { 0.0 }),
         ];
-        let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("present"),
-            layout: Some(&self.layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &encode,
-                    ..Default::default()
-                },
-                targets: &[Some(format.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = super::pipeline::fullscreen(
+            dev,
+            "present",
+            &self.layout,
+            &module,
+            &encode,
+            format.into(),
+        );
         self.pipelines.push((key, pipeline));
         PipelineId(self.pipelines.len() - 1)
     }

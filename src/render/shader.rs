@@ -42,10 +42,12 @@ pub const REPROJECT: &str = concat!(
 pub const PRESENT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
+    include_str!("../../shaders/fullscreen.wgsl"),
     include_str!("../../shaders/present.wgsl")
 );
 pub const EMBED: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/fullscreen.wgsl"),
     include_str!("../../shaders/embed.wgsl")
 );
 

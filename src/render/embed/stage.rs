@@ -221,36 +221,22 @@ impl EmbedStage {
             dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
             operation: wgpu::BlendOperation::Add,
         };
-        let pipeline = gpu
-            .device
-            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("embed: composite"),
-                layout: Some(&self.composite_pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &self.module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: Default::default(),
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &self.module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: Some(wgpu::BlendState {
-                            color: blend,
-                            alpha: blend,
-                        }),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+        let target = wgpu::ColorTargetState {
+            format,
+            blend: Some(wgpu::BlendState {
+                color: blend,
+                alpha: blend,
+            }),
+            write_mask: wgpu::ColorWrites::ALL,
+        };
+        let pipeline = crate::render::pipeline::fullscreen(
+            &gpu.device,
+            "embed: composite",
+            &self.composite_pipeline_layout,
+            &self.module,
+            &[],
+            target,
+        );
         self.made.pipelines += 1;
         self.composites.push((format, pipeline));
         self.composites.len() - 1
