@@ -203,22 +203,7 @@ impl Running {
             .renderer
             .update_buffers(&gpu.device, &gpu.queue, enc, &prims, &screen);
         {
-            let pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("egui"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let pass = crate::render::pipeline::over_pass(enc, "egui", target);
             let mut pass = pass.forget_lifetime();
             self.ui.renderer.render(&mut pass, &prims, &screen);
         }

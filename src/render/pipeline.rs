@@ -2,7 +2,7 @@
 //! stage's module, a cloud stage's feature variants ([`Variant`], compiled per frame's features
 //! as pipeline-overridable constants, [`StagePipelines`]), the pipeline layout of a stage that
 //! evaluates the cloud as the march does ([`cloud_stage`]), and bind groups numbered in order
-//! ([`bind`], [`bind_frame_textures`]), and the full-screen draw ([`fullscreen`]). The layouts themselves come from each stage's binding
+//! ([`bind`], [`bind_frame_textures`]), and the full-screen draw ([`fullscreen`], [`over_pass`]). The layouts themselves come from each stage's binding
 //! table (render::contract).
 
 use std::collections::HashMap;
@@ -237,5 +237,30 @@ pub fn fullscreen(
         }),
         multiview_mask: None,
         cache: None,
+    })
+}
+
+/// A render pass drawing over what `target` holds (loaded, then stored): the embed composite
+/// over the host's picture, the window's interface over the clouds.
+pub fn over_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    target: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
     })
 }

@@ -398,22 +398,7 @@ impl EmbedStage {
         let Some(bind) = self.sized.as_ref().and_then(|s| s.composite_bind.as_ref()) else {
             return;
         };
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("embed: composite"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::render::pipeline::over_pass(enc, "embed: composite", target);
         pass.set_pipeline(&self.composites[pipeline].1);
         pass.set_bind_group(0, &self.params_bind, &[]);
         pass.set_bind_group(2, bind, &[]);
