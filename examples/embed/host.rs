@@ -221,6 +221,14 @@ impl Host {
         }
     }
 
+    /// Replace a mesh's vertices (as many as it was made with, or fewer): the host moving an
+    /// object, without a new buffer.
+    pub fn update_mesh(&self, mesh: &Mesh, vertices: &[Vertex]) {
+        let n = vertices.len().min(mesh.count as usize);
+        self.queue
+            .write_buffer(&mesh.buffer, 0, bytemuck::cast_slice(&vertices[..n]));
+    }
+
     /// The host's own frame: clear to `sky`, draw the meshes with `view_projection`.
     pub fn draw(
         &self,

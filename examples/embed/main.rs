@@ -3,9 +3,11 @@
 //! reversed-Z depth buffer, then hands Stratus its device, camera, colour and depth, and the
 //! clouds are marched up to the host's depth and blended over its colour.
 //!
-//! `cargo run --release --example embed -- --out embed.png [--size 640x360] [--map m.json]
-//!  [--frames N] [--compare] [--sky]`
+//! `cargo run --release --example embed -- [--window | --out embed.png] [--size 640x360]
+//!  [--map m.json] [--frames N] [--compare] [--sky]`
 //!
+//! With no `--out`, `--frames` or `--compare` it opens a window and flies north over the deck
+//! (Esc closes it); `--window --frames N` closes it after N frames.
 //! Without `--map`, a made-up broken low deck (1.4–2.2 km) over the host's hills near 47°N 8°E.
 //! `--frames N` times N embedded frames; `--compare` also times Stratus' own frame
 //! (`Renderer::encode`, what `stratus render` records, without its read-back) at the same view
@@ -13,6 +15,7 @@
 //! (beyond its 30 km of terrain), instead of the host's flat blue.
 
 mod host;
+mod window;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,9 +45,11 @@ struct Args {
     out: Option<PathBuf>,
     size: (u32, u32),
     map: Option<PathBuf>,
-    frames: u32,
+    /// `--frames N`: timed frames headless, or the window's frame count before it closes.
+    frames: Option<u32>,
     compare: bool,
     sky: bool,
+    window: bool,
 }
 
 fn args() -> anyhow::Result<Args> {
@@ -52,18 +57,30 @@ fn args() -> anyhow::Result<Args> {
         out: None,
         size: (640, 360),
         map: None,
-        frames: 1,
+        frames: None,
         compare: false,
         sky: false,
+        window: false,
     };
+    let mut headless = false;
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
         let mut value = || it.next().ok_or_else(|| anyhow!("{k} needs a value"));
         match k.as_str() {
-            "--out" => a.out = Some(value()?.into()),
+            "--out" => {
+                a.out = Some(value()?.into());
+                headless = true;
+            }
+            "--window" => a.window = true,
             "--map" => a.map = Some(value()?.into()),
-            "--frames" => a.frames = value()?.parse().context("--frames")?,
-            "--compare" => a.compare = true,
+            "--frames" => {
+                a.frames = Some(value()?.parse().context("--frames")?);
+                headless = !a.window;
+            }
+            "--compare" => {
+                a.compare = true;
+                headless = true;
+            }
             "--sky" => a.sky = true,
             "--size" => {
                 let v = value()?;
@@ -72,6 +89,13 @@ fn args() -> anyhow::Result<Args> {
             }
             other => return Err(anyhow!("unknown argument {other}")),
         }
+    }
+    // No output asked for: the window. `--window --frames N` closes it after N frames.
+    a.window |= !headless;
+    if a.window && (a.out.is_some() || a.compare) {
+        return Err(anyhow!(
+            "--window draws to the screen: not with --out or --compare"
+        ));
     }
     Ok(a)
 }
@@ -105,9 +129,11 @@ fn made_up_map() -> CloudMap {
     )
 }
 
-/// The host's camera: 2.6 km up, looking north and a little down over the deck.
-fn camera(size: (u32, u32)) -> HostCamera {
-    let eye = Vec3::new(0.0, 2600.0, 0.0);
+/// Where the host's camera starts: 2.6 km up over the origin.
+const EYE: Vec3 = Vec3::new(0.0, 2600.0, 0.0);
+
+/// The host's camera at `eye`, looking north and a little down over the deck.
+fn camera(eye: Vec3, size: (u32, u32)) -> HostCamera {
     HostCamera::look_at(
         ANCHOR,
         eye,
@@ -120,69 +146,122 @@ fn camera(size: (u32, u32)) -> HostCamera {
     )
 }
 
+/// What the host owns: its device and targets, its terrain and aircraft, and Stratus' clouds on
+/// its device.
+struct World {
+    host: Host,
+    terrain: host::Mesh,
+    aircraft: host::Mesh,
+    clouds: EmbeddedClouds,
+}
+
+const SUN: Vec3 = Vec3::new(0.5, 0.6, 0.3);
+
+/// An aircraft-sized box (36 m span, 6 m high, 38 m long) 160 m ahead of `eye`, a little below.
+fn aircraft(eye: Vec3) -> Vec<host::Vertex> {
+    host::cuboid(
+        eye + Vec3::new(30.0, -40.0, -160.0),
+        Vec3::new(18.0, 3.0, 19.0),
+        [0.75, 0.12, 0.08],
+        SUN,
+    )
+}
+
+impl World {
+    /// The host's scene and Stratus on its device, drawing into `color` targets of `size`.
+    fn new(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        size: (u32, u32),
+        color: wgpu::TextureFormat,
+        map: &CloudMap,
+        options: EmbedOptions,
+    ) -> anyhow::Result<World> {
+        let host = Host::new(device, queue, size, color, DEPTH);
+        let terrain = host.mesh(&host::terrain(160, 30_000.0, SUN));
+        let aircraft = host.mesh(&aircraft(EYE));
+        let clouds = EmbeddedClouds::new(
+            &host.device,
+            &host.queue,
+            map,
+            HostFormats {
+                color,
+                depth: DEPTH,
+            },
+            options,
+        )?;
+        Ok(World {
+            host,
+            terrain,
+            aircraft,
+            clouds,
+        })
+    }
+
+    /// One frame: the host's terrain and box, then the clouds up to its depth, over its colour.
+    fn encode(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        cam: &HostCamera,
+        time: DateTime<Utc>,
+    ) -> anyhow::Result<()> {
+        self.host.draw(
+            enc,
+            cam.view_projection(),
+            cam.depth,
+            &[&self.terrain, &self.aircraft],
+            [0.30, 0.48, 0.80],
+        );
+        self.clouds.encode(
+            enc,
+            &HostFrame {
+                camera: cam,
+                color: &self.host.color_view,
+                depth: &self.host.depth_view,
+                time,
+            },
+        )?;
+        Ok(())
+    }
+}
+
 fn main() -> anyhow::Result<()> {
     let a = args()?;
     let map = match &a.map {
         Some(p) => CloudMap::load(p).with_context(|| format!("reading {}", p.display()))?,
         None => made_up_map(),
     };
+    let options = EmbedOptions {
+        exposure: CloudExposure::Stratus,
+        sky: a.sky,
+        ..Default::default()
+    };
+    if a.window {
+        return window::run(a.size, a.frames, map, options);
+    }
     // The host: its own device, targets and scene.
     let (device, queue) = host::open_device().map_err(|e| anyhow!(e))?;
-    let host = Host::new(device, queue, a.size, COLOR, DEPTH);
-    let sun = Vec3::new(0.5, 0.6, 0.3);
-    let terrain = host.mesh(&host::terrain(160, 30_000.0, sun));
-    // An aircraft-sized box (36 m span, 6 m high, 38 m long) 160 m ahead, a little below.
-    let aircraft = host.mesh(&host::cuboid(
-        Vec3::new(30.0, 2560.0, -160.0),
-        Vec3::new(18.0, 3.0, 19.0),
-        [0.75, 0.12, 0.08],
-        sun,
-    ));
-    // Stratus on the host's device.
-    let mut clouds = EmbeddedClouds::new(
-        &host.device,
-        &host.queue,
-        &map,
-        HostFormats {
-            color: COLOR,
-            depth: DEPTH,
-        },
-        EmbedOptions {
-            exposure: CloudExposure::Stratus,
-            sky: a.sky,
-            ..Default::default()
-        },
-    )?;
-    let cam = camera(a.size);
+    let mut world = World::new(device, queue, a.size, COLOR, &map, options)?;
+    let cam = camera(EYE, a.size);
     let mut ms = Vec::new();
-    for _ in 0..a.frames.max(1) {
+    for _ in 0..a.frames.unwrap_or(1).max(1) {
         let start = Instant::now();
-        let mut enc = host.device.create_command_encoder(&Default::default());
-        host.draw(
-            &mut enc,
-            cam.view_projection(),
-            cam.depth,
-            &[&terrain, &aircraft],
-            [0.30, 0.48, 0.80],
-        );
-        clouds.encode(
-            &mut enc,
-            &HostFrame {
-                camera: &cam,
-                color: &host.color_view,
-                depth: &host.depth_view,
-                time: time(),
-            },
-        )?;
-        host.queue.submit([enc.finish()]);
-        host.device
+        let mut enc = world
+            .host
+            .device
+            .create_command_encoder(&Default::default());
+        world.encode(&mut enc, &cam, time())?;
+        world.host.queue.submit([enc.finish()]);
+        world
+            .host
+            .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| anyhow!("{e}"))?;
         ms.push(start.elapsed().as_secs_f64() * 1e3);
     }
     report("embedded frame (host + clouds)", &ms);
     if let Some(out) = &a.out {
-        let px = host.read_color();
+        let px = world.host.read_color();
         let bytes: Vec<u8> = px
             .iter()
             .flat_map(|p| p.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8))
@@ -194,7 +273,7 @@ fn main() -> anyhow::Result<()> {
         eprintln!("wrote {}", out.display());
     }
     if a.compare {
-        compare(&map, &cam, &a, &clouds)?;
+        compare(&map, &cam, &a, &world.clouds)?;
     }
     Ok(())
 }
@@ -227,7 +306,7 @@ fn compare(
     });
     let tv = target.create_view(&Default::default());
     let mut ms = Vec::new();
-    for _ in 0..a.frames.max(1) {
+    for _ in 0..a.frames.unwrap_or(1).max(1) {
         let start = Instant::now();
         let mut enc = r.gpu.device.create_command_encoder(&Default::default());
         r.encode(
