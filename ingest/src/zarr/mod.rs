@@ -15,6 +15,8 @@
 //! in its JSON files.
 
 pub mod array;
+pub mod batch;
+pub mod motion;
 pub mod read;
 pub mod vars;
 pub mod write;
