@@ -30,7 +30,7 @@ use crate::forecast::LevelSelect;
 use crate::grib::{self, SurfaceType};
 use crate::lattice::{structure_grid, StructureGrid};
 use crate::meta::{format_time, CloudMapMeta};
-use crate::output::{ensure_not_input, lock_output, StagingDir};
+use crate::output::{ensure_not_input, lock_output, write_atomic, StagingDir};
 use crate::pipeline::IngestOptions;
 use crate::region::Region;
 use crate::series::inputs::{InputFile, StepSource};
@@ -351,8 +351,18 @@ pub fn step(
         meta: meta.clone(),
     };
     let bytes = serde_json::to_vec_pretty(&rec).map_err(|e| IngestError::write(out, e))?;
-    put_atomic(&step_record(out, k), &bytes)?;
+    put_record(&step_record(out, k), &bytes)?;
     Ok(rec.step)
+}
+
+/// A record into the run's folder, atomically; never creating the folder, so that a call
+/// outliving its run (its worker killed, the task retried and the run finished) leaves no
+/// stale run behind.
+fn put_record(p: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic(p, |w| {
+        use std::io::Write;
+        w.write_all(bytes).map_err(|e| e.to_string())
+    })
 }
 
 /// Step `k`'s record, written by [`step`]; missing: the step is not written yet.
@@ -412,7 +422,7 @@ pub fn motion(out: &Path, k: usize, run: &str) -> Result<StepMotion> {
     write_interval(out, k, &s, &put_atomic)?;
     let e = entry(&s);
     let bytes = serde_json::to_vec_pretty(&e).map_err(|e| IngestError::write(out, e))?;
-    put_atomic(&motion_record(out, k), &bytes)?;
+    put_record(&motion_record(out, k), &bytes)?;
     Ok(e)
 }
 
