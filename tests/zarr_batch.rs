@@ -81,7 +81,10 @@ fn a_store_carries_the_png_series_motion_exactly() {
     args.extend(["--out", png.to_str().unwrap()]);
     ok(&ingest(&f, &args));
     let series = Series::load(&png.with_extension("json")).unwrap();
-    assert!(series.meta.steps[0].motion.is_some(), "the PNG series stores motion");
+    assert!(
+        series.meta.steps[0].motion.is_some(),
+        "the PNG series stores motion"
+    );
     let want = motion_of(&series);
 
     let whole = dir.path().join("whole.zarr");
@@ -102,7 +105,11 @@ fn a_store_carries_the_png_series_motion_exactly() {
         let got = motion_of(&Arc::clone(&s).into_series().unwrap());
         // Read from the arrays (6 chunks besides the two maps), not estimated.
         assert!(s.stats().chunks_read > before, "{}", store.display());
-        assert!(got == want, "{}: the motion is not the PNG series'", store.display());
+        assert!(
+            got == want,
+            "{}: the motion is not the PNG series'",
+            store.display()
+        );
     }
     // The appended store is the one written at once, chunk for chunk.
     let (a, b) = (snapshot(&whole), snapshot(&appended));
@@ -134,14 +141,29 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
     ok(&call(&f, &["--plan", "--run", "r1"]));
     // A second run on the store is refused at its run folder; the store is unchanged.
     let planned = snapshot(&out);
-    refused(&call(&f, &["--plan", "--run", "r2"]), "another batch run (r1)");
-    refused(&call(&f, &["--step", "0", "--run", "r2"]), "batch run r1, not r2");
-    refused(&call(&f, &["--step", "2", "--run", "r1"]), "outside the plan");
-    refused(&call(&f[..1], &["--step", "0", "--run", "r1"]), "not the plan's");
+    refused(
+        &call(&f, &["--plan", "--run", "r2"]),
+        "another batch run (r1)",
+    );
+    refused(
+        &call(&f, &["--step", "0", "--run", "r2"]),
+        "batch run r1, not r2",
+    );
+    refused(
+        &call(&f, &["--step", "2", "--run", "r1"]),
+        "outside the plan",
+    );
+    refused(
+        &call(&f[..1], &["--step", "0", "--run", "r1"]),
+        "not the plan's",
+    );
     let mut other = vec!["--region", "30,65,-60,11", "--size", "260x140", "--out", o];
     other.extend(["--step", "0", "--run", "r1"]);
     refused(&ingest(&f, &other), "the plan is region");
-    refused(&call(&[], &["--motion", "0", "--run", "r1"]), "step 0 is not written yet");
+    refused(
+        &call(&[], &["--motion", "0", "--run", "r1"]),
+        "step 0 is not written yet",
+    );
     refused(&call(&[], &["--finish", "--run", "r1"]), "not written yet");
     // The store is not a Stratus map until the run finishes.
     let probe = stratus(&["probe", "--map", o, "--at", "50,-25"]);
@@ -152,10 +174,16 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
     ok(&call(&f, &["--step", "1", "--run", "r1"]));
     ok(&call(&f, &["--step", "0", "--run", "r1"]));
     ok(&call(&f, &["--step", "0", "--run", "r1"]));
-    refused(&call(&[], &["--motion", "1", "--run", "r1"]), "outside the plan");
+    refused(
+        &call(&[], &["--motion", "1", "--run", "r1"]),
+        "outside the plan",
+    );
     ok(&call(&[], &["--motion", "0", "--run", "r1"]));
     ok(&call(&[], &["--finish", "--run", "r1"]));
-    assert!(!dir.path().join(".b.zarr.batch").exists(), "the run folder is removed");
+    assert!(
+        !dir.path().join(".b.zarr.batch").exists(),
+        "the run folder is removed"
+    );
     let (a, b) = (snapshot(&serial), snapshot(&out));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     for (k, v) in &a {
@@ -164,7 +192,10 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
         }
     }
     // A finished store takes no more batch calls.
-    refused(&call(&f, &["--step", "0", "--run", "r1"]), "has no batch plan");
+    refused(
+        &call(&f, &["--step", "0", "--run", "r1"]),
+        "has no batch plan",
+    );
     ok(&stratus(&["probe", "--map", o, "--at", "50,-25"]));
 }
 
@@ -189,7 +220,13 @@ fn a_damaged_step_chunk_stops_the_motion_call_naming_it() {
         &call(&[], &["--motion", "0", "--run", "r"]),
         "coverage/c/1/0/0/0: damaged chunk",
     );
-    assert!(snapshot(dir.path()) == before, "a refused call wrote something");
+    assert!(
+        snapshot(dir.path()) == before,
+        "a refused call wrote something"
+    );
     std::fs::remove_file(out.join("zarr.json")).unwrap();
-    refused(&call(&f, &["--step", "0", "--run", "r"]), "zarr.json: missing");
+    refused(
+        &call(&f, &["--step", "0", "--run", "r"]),
+        "zarr.json: missing",
+    );
 }

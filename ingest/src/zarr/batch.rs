@@ -137,8 +137,9 @@ fn has_ground(path: &Path, grid: &grib::LatLonGrid) -> Result<bool> {
     if m.grid.as_ref() != Some(grid) {
         return Ok(false);
     }
-    Ok(grib::decode_values(&bytes, m)
-        .is_ok_and(|f| f.values.len() == grid.ni * grid.nj && f.values.iter().all(|v| v.is_finite())))
+    Ok(grib::decode_values(&bytes, m).is_ok_and(|f| {
+        f.values.len() == grid.ni * grid.nj && f.values.iter().all(|v| v.is_finite())
+    }))
 }
 
 /// Create the store `out` (which must not exist) for `steps` (of the surveyed `files`),
@@ -276,7 +277,12 @@ pub fn open_plan(out: &Path, run: &str) -> Result<Plan> {
 }
 
 /// Why the inputs `steps` (ingested with `opts`) are not the plan's, if they are not.
-fn plan_fault(p: &Plan, files: &[InputFile], steps: &[StepSource], opts: &IngestOptions) -> Option<String> {
+fn plan_fault(
+    p: &Plan,
+    files: &[InputFile],
+    steps: &[StepSource],
+    opts: &IngestOptions,
+) -> Option<String> {
     let same_region = serde_json::to_value(p.region).ok() == serde_json::to_value(opts.region).ok();
     if !same_region || (p.width, p.height) != (opts.width, opts.height) {
         return Some(format!(
@@ -294,8 +300,16 @@ fn plan_fault(p: &Plan, files: &[InputFile], steps: &[StepSource], opts: &Ingest
     (hours != p.hours).then(|| {
         format!(
             "the input files' steps ({}) are not the plan's ({})",
-            hours.iter().map(|&h| show_hour(h)).collect::<Vec<_>>().join(", "),
-            p.hours.iter().map(|&h| show_hour(h)).collect::<Vec<_>>().join(", ")
+            hours
+                .iter()
+                .map(|&h| show_hour(h))
+                .collect::<Vec<_>>()
+                .join(", "),
+            p.hours
+                .iter()
+                .map(|&h| show_hour(h))
+                .collect::<Vec<_>>()
+                .join(", ")
         )
     })
 }
@@ -326,7 +340,10 @@ pub fn step(
     let src = steps.get(k).ok_or_else(|| {
         fault(
             out,
-            format!("step {k} is outside the plan's steps 0..{}", p.hours.len() - 1),
+            format!(
+                "step {k} is outside the plan's steps 0..{}",
+                p.hours.len() - 1
+            ),
         )
     })?;
     let (_stage, series) = ingest_steps(out, std::slice::from_ref(src), select, opts, progress)?;

@@ -105,10 +105,7 @@ pub fn write_interval(store: &Path, k: usize, s: &MotionSamples, put: Put) -> Re
 /// The motion arrays' metadata when `series` names stored motion, checked against it: the
 /// working grid, and an interval axis at least as long as the steps' (an append cut short
 /// may have left it longer).
-pub(crate) fn open_arrays(
-    path: &Path,
-    series: &SeriesMeta,
-) -> Result<BTreeMap<String, ArrayMeta>> {
+pub(crate) fn open_arrays(path: &Path, series: &SeriesMeta) -> Result<BTreeMap<String, ArrayMeta>> {
     let mut out = BTreeMap::new();
     if series.steps.iter().all(|s| s.motion.is_none()) {
         return Ok(out);

@@ -294,7 +294,10 @@ fn window(g: &StructureGrid, region: &Region, lat: f64, lon: f64) -> Window {
 }
 
 /// Every array's metadata, present and agreeing with the steps.
-pub(crate) fn open_arrays(path: &Path, steps: &[CloudMapMeta]) -> Result<BTreeMap<String, ArrayMeta>> {
+pub(crate) fn open_arrays(
+    path: &Path,
+    steps: &[CloudMapMeta],
+) -> Result<BTreeMap<String, ArrayMeta>> {
     let first = &steps[0];
     let mut arrays = BTreeMap::new();
     for v in &VARS {

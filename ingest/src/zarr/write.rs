@@ -25,8 +25,8 @@ use crate::meta::{format_time, CloudMapMeta};
 use crate::output::{ensure_not_input, lock_output, write_atomic, StagingDir};
 use crate::pipeline::IngestOptions;
 use crate::series::inputs::StepSource;
-use crate::series::write::write_series;
 use crate::series::stored::{self, MotionSamples};
+use crate::series::write::write_series;
 use crate::series::{meta::show_hour, Series, SeriesMeta, SeriesStep};
 
 use super::array::{encode_chunk, ArrayMeta, Dtype};
@@ -161,10 +161,12 @@ pub fn append(
             .steps
             .extend(staged_motion(out, t0, &new, &put_atomic)?.steps);
     } else {
-        series.steps.extend(new.meta.steps.iter().map(|s| SeriesStep {
-            motion: None,
-            ..s.clone()
-        }));
+        series
+            .steps
+            .extend(new.meta.steps.iter().map(|s| SeriesStep {
+                motion: None,
+                ..s.clone()
+            }));
     }
     let mut metas = store.steps.clone();
     metas.extend(new.step_metas.iter().cloned());

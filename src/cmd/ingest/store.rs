@@ -56,7 +56,11 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             "{}: planned {} step(s) ({}) and {} interval(s) for batch run {run}, {:.2} s",
             shown(&args.out),
             p.hours.len(),
-            p.hours.iter().map(|&h| show_hour(h)).collect::<Vec<_>>().join(", "),
+            p.hours
+                .iter()
+                .map(|&h| show_hour(h))
+                .collect::<Vec<_>>()
+                .join(", "),
             p.hours.len().saturating_sub(1),
             t0.elapsed().as_secs_f64()
         )?;
