@@ -131,6 +131,7 @@ def ingest(
     run = uuid.uuid4().hex
     _stratus_ingest(exe, [*common, "--out", store, "--plan", "--run", run])
     cluster = own = None
+    futures: list = []
     try:
         n = _planned_steps(store)
         if client is None:
@@ -159,12 +160,16 @@ def ingest(
             )
             for k in range(n - 1)
         ]
+        futures = steps + motions
         if progress:
-            show_progress(steps + motions)
-        client.gather(steps + motions)
+            show_progress(futures)
+        client.gather(futures)
         _stratus_ingest(exe, ["--out", store, "--finish", "--run", run])
     except BaseException:
-        # This run planned the store: nothing of it is left for a later run to trip on.
+        # This run planned the store: nothing of it is left for a later run to trip on (a
+        # call still running finds the store gone and writes nothing more).
+        if futures:
+            client.cancel(futures)
         shutil.rmtree(store, ignore_errors=True)
         lock = Path(store).with_name(f".{Path(store).name}.batch")
         shutil.rmtree(lock, ignore_errors=True)

@@ -194,3 +194,20 @@ def test_the_python_api_with_a_client(pkg, tmp_path, serial_na, monkeypatch):
             with pytest.raises(ValueError, match="it exists"):
                 sb.ingest(NA["files"], got, NA["region"], NA["size"], client, progress=False)
     assert_same_store(serial_na, tmp_path / "api.zarr")
+
+
+def test_a_step_that_fails_raises_its_line_and_leaves_nothing(pkg, tmp_path):
+    wrapper = tmp_path / "stratus-failing"
+    wrapper.write_text(
+        f"""#!/bin/sh
+case " $* " in *" --step 1 "*) echo "error: step 1: injected failure" >&2; exit 2;; esac
+exec "{stratus()}" "$@"
+"""
+    )
+    wrapper.chmod(0o755)
+    out = tmp_path / "f.zarr"
+    p = batch(pkg, NA, out, env={"STRATUS_BIN": str(wrapper)})
+    code, _, err = finished(p)
+    assert code == 2, err
+    assert err.strip().splitlines()[-1] == "error: step 1: injected failure", err
+    assert not out.exists() and not (tmp_path / ".f.zarr.batch").exists()

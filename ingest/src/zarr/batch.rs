@@ -362,7 +362,7 @@ pub fn step(
             ),
         ));
     }
-    write_step(out, k, &series.step_map(0)?, &put_atomic)?;
+    write_step(out, k, &series.step_map(0)?, &in_store(out))?;
     let rec = StepRecord {
         step: series.meta.steps[0].clone(),
         meta: meta.clone(),
@@ -370,6 +370,20 @@ pub fn step(
     let bytes = serde_json::to_vec_pretty(&rec).map_err(|e| IngestError::write(out, e))?;
     put_record(&step_record(out, k), &bytes)?;
     Ok(rec.step)
+}
+
+/// A chunk into the store `out`, atomically, while the store is there: a call still running
+/// when its run was given up (and the store removed) does not make a partial store again.
+fn in_store(out: &Path) -> impl Fn(&Path, &[u8]) -> Result<()> + Sync + '_ {
+    move |p, bytes| {
+        if !out.join("zarr.json").is_file() {
+            return Err(fault(
+                out,
+                "the store was removed while this call wrote it (its batch run was given up)",
+            ));
+        }
+        put_atomic(p, bytes)
+    }
 }
 
 /// A record into the run's folder, atomically; never creating the folder, so that a call
@@ -436,7 +450,7 @@ pub fn motion(out: &Path, k: usize, run: &str) -> Result<StepMotion> {
     let interval_s = (p.hours[k + 1] - p.hours[k]) * 3600.0;
     let m = crate::series::motion::estimate(&maps[0], &maps[1], interval_s)?;
     let s = stored::samples(&m);
-    write_interval(out, k, &s, &put_atomic)?;
+    write_interval(out, k, &s, &in_store(out))?;
     let e = entry(&s);
     let bytes = serde_json::to_vec_pretty(&e).map_err(|e| IngestError::write(out, e))?;
     put_record(&motion_record(out, k), &bytes)?;
