@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The Python tests (tests/python, pytest): xarray opens the Zarr stores the CLI writes
-# (docs/zarr.md). Installs what it needs with pip (xarray, zarr >= 3, numpy, pytest; zarr 3
+# The Python tests (tests/python, pytest): xarray opens the Zarr stores the CLI writes, and
+# python -m stratus.batch writes them on a local Dask cluster (docs/zarr.md). Installs what it
+# needs with pip (xarray, zarr >= 3, numpy, pytest, dask[distributed]; zarr 3
 # needs Python >= 3.11). If they cannot be installed (no network, no pip) this fails loudly:
 # it never skips.
 set -euo pipefail
@@ -14,16 +15,16 @@ have() {
     "$PY" - <<'PYEOF'
 import importlib.metadata as m, sys
 try:
-    import numpy, pytest, xarray, zarr  # noqa: F401
+    import dask, distributed, numpy, pytest, xarray, zarr  # noqa: F401
 except ImportError:
     sys.exit(1)
 sys.exit(int(m.version("zarr").split(".")[0]) < 3)
 PYEOF
 }
 if ! have; then
-    echo "python-tests: installing xarray, zarr>=3, numpy, pytest with pip" >&2
-    if ! "$PY" -m pip install --quiet --break-system-packages 'xarray' 'zarr>=3' numpy pytest; then
-        "$PY" -m pip install --quiet 'xarray' 'zarr>=3' numpy pytest || {
+    echo "python-tests: installing xarray, zarr>=3, numpy, pytest, dask[distributed] with pip" >&2
+    if ! "$PY" -m pip install --quiet --break-system-packages 'xarray' 'zarr>=3' numpy pytest 'dask[distributed]'; then
+        "$PY" -m pip install --quiet 'xarray' 'zarr>=3' numpy pytest 'dask[distributed]' || {
             echo "python-tests: FAILED to install the Python test dependencies (is PyPI reachable?)" >&2
             exit 1
         }

@@ -242,7 +242,7 @@ impl SeriesMeta {
 }
 
 /// Times as the map sidecars store them (RFC 3339, UTC, whole seconds).
-mod time_text {
+pub(crate) mod time_text {
     use crate::meta::{format_time, parse_time};
     use chrono::{DateTime, Utc};
     use serde::{de::Error, Deserialize, Deserializer, Serializer};

@@ -42,13 +42,29 @@ pub struct Series {
     pub loader: Option<StepLoader>,
 }
 
-/// Reads step `k`'s map of a series held elsewhere than in PNG sets (a Zarr store).
+/// Reads step `k`'s map of a series held elsewhere than in PNG sets (a Zarr store), and
+/// (when that place holds it) the stored motion from step `k` to `k + 1`.
 #[derive(Clone)]
-pub struct StepLoader(std::sync::Arc<dyn Fn(usize) -> Result<CloudMap> + Send + Sync>);
+pub struct StepLoader(
+    std::sync::Arc<dyn Fn(usize) -> Result<CloudMap> + Send + Sync>,
+    Option<MotionLoader>,
+);
+
+/// Reads the stored motion after step `k` of a series held elsewhere than in PNG sets.
+type MotionLoader = std::sync::Arc<dyn Fn(usize) -> Result<motion::Motion> + Send + Sync>;
 
 impl StepLoader {
     pub fn new(f: impl Fn(usize) -> Result<CloudMap> + Send + Sync + 'static) -> StepLoader {
-        StepLoader(std::sync::Arc::new(f))
+        StepLoader(std::sync::Arc::new(f), None)
+    }
+
+    /// The loader that also reads each step's stored motion with `m` (used for the steps
+    /// whose series entry names a motion).
+    pub fn with_motion(
+        self,
+        m: impl Fn(usize) -> Result<motion::Motion> + Send + Sync + 'static,
+    ) -> StepLoader {
+        StepLoader(self.0, Some(std::sync::Arc::new(m)))
     }
 }
 
@@ -259,6 +275,9 @@ impl Series {
             ));
         };
         if let Some(m) = &s0.motion {
+            if let Some(read) = self.loader.as_ref().and_then(|l| l.1.as_ref()) {
+                return read(k);
+            }
             return stored::read(folder(&self.path), m, &self.meta).map_err(|e| {
                 IngestError::series(
                     &self.path,

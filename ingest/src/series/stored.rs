@@ -41,9 +41,22 @@ pub fn motion_paths(png: &Path) -> (PathBuf, PathBuf) {
 /// One layer's guarded motion, east and south (map pixels per interval).
 type Field = (Vec<f32>, Vec<f32>);
 
-/// `motion`'s guarded fields as the two images' big-endian RGBA samples, with their working
-/// grid's size and the scale (map pixels per unit: the largest displacement fills the range).
-fn encode(motion: &Motion) -> (usize, usize, f64, [Vec<u8>; 2]) {
+/// A motion as it is stored: per image (east `u`, south `v`) each working-grid texel's
+/// samples for channels R/G/B = low/middle/high ([`ZERO`] where the series has no such
+/// layer), (sample − [`ZERO`]) × `scale` map pixels per interval. The PNG images and a Zarr
+/// store's `motion_u`/`motion_v` arrays (`crate::zarr`) hold exactly these.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionSamples {
+    pub width: usize,
+    pub height: usize,
+    pub scale: f64,
+    pub u: Vec<[u16; 3]>,
+    pub v: Vec<[u16; 3]>,
+}
+
+/// `motion`'s guarded fields as samples, the scale chosen so that the largest displacement
+/// fills the range.
+pub fn samples(motion: &Motion) -> MotionSamples {
     let (w, h) = motion.layers.first().map_or((1, 1), |l| (l.u.w, l.u.h));
     let fields: Vec<(usize, Field)> = motion
         .layers
@@ -56,31 +69,47 @@ fn encode(motion: &Motion) -> (usize, usize, f64, [Vec<u8>; 2]) {
         .fold(0.0f32, |m, x| m.max(x.abs()));
     let scale = (f64::from(most) / 32767.0).max(1e-4);
     let image = |pick: fn(&Field) -> &Vec<f32>| {
-        let mut out = Vec::with_capacity(w * h * 8);
-        for k in 0..w * h {
-            for c in 0..4 {
-                let s = match fields.iter().find(|(ch, _)| *ch == c) {
-                    Some((_, f)) if c < 3 => {
+        (0..w * h)
+            .map(|k| {
+                let mut t = [ZERO; 3];
+                for (c, s) in t.iter_mut().enumerate() {
+                    if let Some((_, f)) = fields.iter().find(|(ch, _)| *ch == c) {
                         let x = f64::from(pick(f)[k]) / scale;
-                        (f64::from(ZERO) + x.round()).clamp(0.0, 65535.0) as u16
+                        *s = (f64::from(ZERO) + x.round()).clamp(0.0, 65535.0) as u16;
                     }
-                    _ if c == 3 => u16::MAX,
-                    _ => ZERO,
-                };
-                out.extend_from_slice(&s.to_be_bytes());
-            }
-        }
-        out
+                }
+                t
+            })
+            .collect()
     };
-    (w, h, scale, [image(|f| &f.0), image(|f| &f.1)])
+    MotionSamples {
+        width: w,
+        height: h,
+        scale,
+        u: image(|f| &f.0),
+        v: image(|f| &f.1),
+    }
+}
+
+/// One image's samples as big-endian RGBA (A opaque).
+fn image_bytes(texels: &[[u16; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(texels.len() * 8);
+    for t in texels {
+        for s in [t[0], t[1], t[2], u16::MAX] {
+            out.extend_from_slice(&s.to_be_bytes());
+        }
+    }
+    out
 }
 
 /// Write `motion` (guarded, from [`super::motion::estimate`]) as the motion images `paths`,
 /// each atomically; the entry the series sidecar gives them.
 pub fn write(motion: &Motion, paths: (&Path, &Path)) -> Result<StepMotion> {
-    let (w, h, scale, [u, v]) = encode(motion);
-    for (p, bytes) in [(paths.0, &u), (paths.1, &v)] {
-        write_atomic(p, |out| encode_png16(out, w as u32, h as u32, 4, bytes))?;
+    let s = samples(motion);
+    let (w, h) = (s.width as u32, s.height as u32);
+    for (p, texels) in [(paths.0, &s.u), (paths.1, &s.v)] {
+        let bytes = image_bytes(texels);
+        write_atomic(p, |out| encode_png16(out, w, h, 4, &bytes))?;
     }
     let name = |p: &Path| {
         p.file_name()
@@ -90,9 +119,9 @@ pub fn write(motion: &Motion, paths: (&Path, &Path)) -> Result<StepMotion> {
     Ok(StepMotion {
         u: name(paths.0),
         v: name(paths.1),
-        width: w as u32,
-        height: h as u32,
-        scale,
+        width: w,
+        height: h,
+        scale: s.scale,
     })
 }
 
@@ -137,23 +166,35 @@ pub fn check(dir: &Path, m: &StepMotion) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// One image's samples: per texel the series' layer channels, map pixels per interval.
-fn decode(path: &Path, m: &StepMotion) -> std::result::Result<Vec<[f32; 3]>, String> {
+/// One image's samples: per texel the R/G/B samples.
+fn decode(path: &Path, m: &StepMotion) -> std::result::Result<Vec<[u16; 3]>, String> {
     let mut reader = open(path, m)?;
     let mut buf = vec![0u8; reader.output_buffer_size()];
     reader
         .next_frame(&mut buf)
         .map_err(|e| format!("PNG data is corrupt: {e}"))?;
     let n = m.width as usize * m.height as usize;
-    let at = |c: &[u8], k: usize| {
-        let s = u16::from_be_bytes([c[2 * k], c[2 * k + 1]]);
-        ((f64::from(s) - f64::from(ZERO)) * m.scale) as f32
-    };
+    let at = |c: &[u8], k: usize| u16::from_be_bytes([c[2 * k], c[2 * k + 1]]);
     Ok(buf
         .chunks_exact(8)
         .take(n)
         .map(|c| [at(c, 0), at(c, 1), at(c, 2)])
         .collect())
+}
+
+/// The samples of the motion images `m` of a step in `dir`; the fault names the file.
+pub fn read_samples(dir: &Path, m: &StepMotion) -> std::result::Result<MotionSamples, String> {
+    let read = |name: &str| {
+        let p = dir.join(name);
+        decode(&p, m).map_err(|e| format!("{}: {e}", crate::error::shown(&p)))
+    };
+    Ok(MotionSamples {
+        width: m.width as usize,
+        height: m.height as usize,
+        scale: m.scale,
+        u: read(&m.u)?,
+        v: read(&m.v)?,
+    })
 }
 
 /// The motion `m` of a step of `series` (folder `dir`), decoded; the fault names the file.
@@ -162,13 +203,14 @@ pub fn read(
     m: &StepMotion,
     series: &SeriesMeta,
 ) -> std::result::Result<Motion, String> {
-    let read = |name: &str| {
-        let p = dir.join(name);
-        decode(&p, m).map_err(|e| format!("{}: {e}", crate::error::shown(&p)))
-    };
-    let (u, v) = (read(&m.u)?, read(&m.v)?);
+    Ok(from_samples(&read_samples(dir, m)?, series))
+}
+
+/// The motion stored as `s` for `series`' layers.
+pub fn from_samples(s: &MotionSamples, series: &SeriesMeta) -> Motion {
+    let at = |t: &[u16; 3], c: usize| ((f64::from(t[c]) - f64::from(ZERO)) * s.scale) as f32;
     let wrap = series.region.lon_span() >= 360.0 - 1e-9;
-    let (w, h) = (m.width as usize, m.height as usize);
+    let (w, h) = (s.width, s.height);
     let map = (series.width as usize, series.height as usize);
     let layers = series
         .layers
@@ -177,13 +219,13 @@ pub fn read(
         .map(|l| {
             let c = l.channel;
             let field = (
-                u.iter().map(|t| t[c]).collect(),
-                v.iter().map(|t| t[c]).collect(),
+                s.u.iter().map(|t| at(t, c)).collect(),
+                s.v.iter().map(|t| at(t, c)).collect(),
             );
             LayerMotion::from_guarded_px((l.kind, c), (w, h, wrap), field, map)
         })
         .collect();
-    Ok(Motion { layers })
+    Motion { layers }
 }
 
 #[cfg(test)]

@@ -8,13 +8,19 @@
 //!   CloudMap and put back (the PNG map's samples, so the two agree value for value);
 //! - [`read`]: [`Store::open`], a step's map whole or only the chunks around one point;
 //! - [`write`]: a new store (staged, then renamed into place) and `--append` (under a lock:
-//!   new chunks first, metadata last).
+//!   new chunks first, metadata last);
+//! - [`motion`]: the motion between steps (`motion_u`, `motion_v`, `motion_scale`), the
+//!   samples a PNG series' motion images hold, read back instead of estimated;
+//! - [`batch`]: one store written by many processes (a Dask cluster): `--plan` (metadata
+//!   for every step, from headers; the run's lock), `--step K`, `--motion K`, `--finish`.
 //!
 //! The group's attributes hold the run's CF attributes and, for this reader, the series
 //! sidecar and every step's map sidecar ([`STEPS_ATTR`], [`SERIES_ATTR`]): what a PNG set keeps
 //! in its JSON files.
 
 pub mod array;
+pub mod batch;
+pub mod motion;
 pub mod read;
 pub mod vars;
 pub mod write;

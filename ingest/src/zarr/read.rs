@@ -41,7 +41,7 @@ pub struct ReadStats {
 
 /// Rows and columns of a lattice to read.
 #[derive(Debug, Clone)]
-struct Window {
+pub(crate) struct Window {
     rows: Range<usize>,
     cols: Range<usize>,
 }
@@ -81,6 +81,12 @@ impl Store {
                 "not a Stratus store (no {STORE_FORMAT:?} format)"
             )));
         }
+        if let Some(p) = attrs.get(super::batch::PLAN_ATTR) {
+            let run = p.get("run").and_then(Value::as_str).unwrap_or("?");
+            return Err(at(format!(
+                "a batch run ({run}) has not finished writing this store (stratus ingest --out STORE --finish --run {run})"
+            )));
+        }
         let series: SeriesMeta = serde_json::from_value(attrs[SERIES_ATTR].clone())
             .map_err(|e| at(format!("{SERIES_ATTR}: {e}")))?;
         series
@@ -102,7 +108,8 @@ impl Store {
                 return Err(at(format!("{STEPS_ATTR}[{k}]: {f}")));
             }
         }
-        let arrays = open_arrays(path, &steps)?;
+        let mut arrays = open_arrays(path, &steps)?;
+        arrays.extend(super::motion::open_arrays(path, &series)?);
         Ok(Store {
             path: path.to_path_buf(),
             series,
@@ -141,8 +148,9 @@ impl Store {
 
     /// The store as a [`Series`] whose steps are read from it.
     pub fn into_series(self: Arc<Self>) -> Result<Series> {
-        let store = Arc::clone(&self);
-        let loader = StepLoader::new(move |k| store.read_step(k));
+        let (store, with_motion) = (Arc::clone(&self), Arc::clone(&self));
+        let loader = StepLoader::new(move |k| store.read_step(k))
+            .with_motion(move |k| with_motion.read_motion(k));
         Series::with_loader(&self.path, self.series.clone(), self.steps.clone(), loader)
     }
 
@@ -157,6 +165,17 @@ impl Store {
             .get(k)
             .ok_or_else(|| fault(&self.path, format!("no step {k}")))?
             .clone();
+        self.assemble_as(k, meta, win)
+    }
+
+    /// The map at time index `k` whose sidecar is `meta`, from its planes, each read through
+    /// `win` (None: whole).
+    pub(crate) fn assemble_as(
+        &self,
+        k: usize,
+        meta: CloudMapMeta,
+        win: impl Fn(&StructureGrid) -> Option<Window> + Sync,
+    ) -> Result<CloudMap> {
         let plane = |v: &Var, l: usize| -> Result<Option<Vec<u16>>> {
             let Some(g) = v
                 .grid
@@ -235,7 +254,7 @@ impl Store {
     }
 
     /// One chunk file, decoded; counted.
-    fn read_chunk(&self, p: &Path, a: &ArrayMeta) -> Result<Vec<u64>> {
+    pub(crate) fn read_chunk(&self, p: &Path, a: &ArrayMeta) -> Result<Vec<u64>> {
         let f = std::fs::File::open(p).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => fault(p, "chunk missing (the store is not whole)"),
             _ => fault(p, format!("cannot read: {e}")),
@@ -275,7 +294,10 @@ fn window(g: &StructureGrid, region: &Region, lat: f64, lon: f64) -> Window {
 }
 
 /// Every array's metadata, present and agreeing with the steps.
-fn open_arrays(path: &Path, steps: &[CloudMapMeta]) -> Result<BTreeMap<String, ArrayMeta>> {
+pub(crate) fn open_arrays(
+    path: &Path,
+    steps: &[CloudMapMeta],
+) -> Result<BTreeMap<String, ArrayMeta>> {
     let first = &steps[0];
     let mut arrays = BTreeMap::new();
     for v in &VARS {

@@ -13,6 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
+use chrono::{DateTime, Utc};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
@@ -24,10 +25,12 @@ use crate::meta::{format_time, CloudMapMeta};
 use crate::output::{ensure_not_input, lock_output, write_atomic, StagingDir};
 use crate::pipeline::IngestOptions;
 use crate::series::inputs::StepSource;
+use crate::series::stored::{self, MotionSamples};
 use crate::series::write::write_series;
-use crate::series::{meta::show_hour, Series, SeriesMeta};
+use crate::series::{meta::show_hour, Series, SeriesMeta, SeriesStep};
 
 use super::array::{encode_chunk, ArrayMeta, Dtype};
+use super::motion::{entry, write_interval, MOTION_U};
 use super::vars::{self, planes, Grid, VARS};
 use super::{fault, Store, CHUNK_SIDE, SERIES_ATTR, STEPS_ATTR, STORE_FORMAT};
 
@@ -43,16 +46,16 @@ pub struct Written {
 
 /// How a file of the store is put down: straight into the staging folder, or atomically
 /// into a live store.
-type Put<'a> = &'a (dyn Fn(&Path, &[u8]) -> Result<()> + Sync);
+pub(crate) type Put<'a> = &'a (dyn Fn(&Path, &[u8]) -> Result<()> + Sync);
 
-fn put_staged(p: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn put_staged(p: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(d) = p.parent() {
         std::fs::create_dir_all(d).map_err(|e| crate::error::IngestError::write(d, e))?;
     }
     std::fs::write(p, bytes).map_err(|e| crate::error::IngestError::write(p, e))
 }
 
-fn put_atomic(p: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn put_atomic(p: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(d) = p.parent() {
         std::fs::create_dir_all(d).map_err(|e| crate::error::IngestError::write(d, e))?;
     }
@@ -63,7 +66,7 @@ fn put_atomic(p: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Ingest `steps` as PNG sets in a staging folder beside `out`; the series read back.
-fn ingest_steps(
+pub(crate) fn ingest_steps(
     out: &Path,
     steps: &[StepSource],
     select: LevelSelect,
@@ -108,8 +111,9 @@ pub fn create(
     for k in 0..series.meta.steps.len() {
         write_step(&staged, k, &series.step_map(k)?, &put_staged)?;
     }
-    write_static_coords(&staged, &series.step_metas[0], &put_staged)?;
-    write_metadata(&staged, &series.meta, &series.step_metas, &put_staged)?;
+    let meta = staged_motion(&staged, 0, &series, &put_staged)?;
+    write_static_coords(&staged, &Lattices::of(&series.step_metas[0]), &put_staged)?;
+    write_metadata(&staged, &meta, &series.step_metas, true, &put_staged)?;
     let _lock = lock_output(out)?;
     if let Some(e) = exists(out) {
         return Err(e);
@@ -117,7 +121,7 @@ pub fn create(
     std::fs::rename(&staged, out).map_err(|e| crate::error::IngestError::write(out, e))?;
     Ok(Written {
         path: out.to_path_buf(),
-        series: series.meta,
+        series: meta,
         added: steps.len(),
     })
 }
@@ -146,14 +150,30 @@ pub fn append(
     for k in 0..new.meta.steps.len() {
         write_step(out, t0 + k, &new.step_map(k)?, &put_atomic)?;
     }
+    // A store from before the motion arrays gets none: its earlier intervals have none.
+    let motion = out.join(MOTION_U).join("zarr.json").is_file();
     let mut series = store.series.clone();
-    series.steps.extend(new.meta.steps.iter().cloned());
+    if motion {
+        let joined = join_motion(&store, &new)?;
+        write_interval(out, t0 - 1, &joined, &put_atomic)?;
+        series.steps[t0 - 1].motion = Some(entry(&joined));
+        series
+            .steps
+            .extend(staged_motion(out, t0, &new, &put_atomic)?.steps);
+    } else {
+        series
+            .steps
+            .extend(new.meta.steps.iter().map(|s| SeriesStep {
+                motion: None,
+                ..s.clone()
+            }));
+    }
     let mut metas = store.steps.clone();
     metas.extend(new.step_metas.iter().cloned());
     series
         .validate()
         .map_err(|e| fault(out, format!("cannot append: {e}")))?;
-    write_metadata(out, &series, &metas, &put_atomic)?;
+    write_metadata(out, &series, &metas, motion, &put_atomic)?;
     Ok(Written {
         path: out.to_path_buf(),
         series,
@@ -162,7 +182,7 @@ pub fn append(
 }
 
 /// Why a store of `s` cannot take maps made with `opts`, if it cannot.
-fn region_fault(s: &SeriesMeta, opts: &IngestOptions) -> Option<String> {
+pub(crate) fn region_fault(s: &SeriesMeta, opts: &IngestOptions) -> Option<String> {
     let same_region = serde_json::to_value(s.region).ok() == serde_json::to_value(opts.region).ok();
     (!same_region || s.width != opts.width || s.height != opts.height).then(|| {
         format!(
@@ -209,7 +229,7 @@ fn append_fault(store: &Store, new: &Series) -> Option<String> {
 }
 
 /// A step's structure and ground lattices (`None`: it has none): one per store.
-fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) {
+pub(crate) fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) {
     (
         m.structure_grid.filter(|_| !m.extra_images.is_empty()),
         m.ground.as_ref().map(|g| g.grid),
@@ -217,7 +237,7 @@ fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) 
 }
 
 /// The first of `series`' steps whose lattices are not the first step's, as a fault.
-fn lattice_fault(series: &Series) -> Option<String> {
+pub(crate) fn lattice_fault(series: &Series) -> Option<String> {
     let first = lattices(series.step_metas.first()?);
     let (s, _) = series
         .meta
@@ -241,7 +261,7 @@ fn chunk_keys(g: &StructureGrid) -> Vec<(usize, usize)> {
 }
 
 /// Every chunk of step `map` at time index `t`, and its time coordinates.
-fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
+pub(crate) fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
     let c = CHUNK_SIDE as usize;
     for v in &VARS {
         let Some(g) = v.grid.of(&map.meta) else {
@@ -274,6 +294,17 @@ fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
     let m = &map.meta;
     let reference = m.source.reference_time.unwrap_or_default();
     let valid = m.source.valid_time.unwrap_or(reference);
+    write_time(store, t, (reference, valid), m.source.forecast_step_h, put)
+}
+
+/// Time index `t`'s coordinates: `time` (minutes after the run) and `forecast_period` (h).
+pub(crate) fn write_time(
+    store: &Path,
+    t: usize,
+    (reference, valid): (DateTime<Utc>, DateTime<Utc>),
+    hours: f64,
+    put: Put,
+) -> Result<()> {
     let minutes = (valid - reference).num_seconds().div_euclid(60);
     let idx = [t as u64];
     put(
@@ -282,18 +313,18 @@ fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Result<()> {
     )?;
     put(
         &ArrayMeta::chunk_path(&store.join("forecast_period"), &idx),
-        &encode_chunk(&[m.source.forecast_step_h.to_bits()], Dtype::F64),
+        &encode_chunk(&[hours.to_bits()], Dtype::F64),
     )
 }
 
 /// The coordinates that do not grow: layer and each lattice's latitudes and longitudes.
-fn write_static_coords(store: &Path, meta: &CloudMapMeta, put: Put) -> Result<()> {
+pub(crate) fn write_static_coords(store: &Path, lat: &Lattices, put: Put) -> Result<()> {
     put(
         &ArrayMeta::chunk_path(&store.join("layer"), &[0]),
         &encode_chunk(&[0, 1, 2], Dtype::U8),
     )?;
     for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
-        let Some(g) = grid.of(meta) else { continue };
+        let Some(g) = lat.get(grid) else { continue };
         let [lat, lon] = grid.dims();
         let lats: Vec<u64> = (0..g.height)
             .map(|j| (g.north - j as f64 * g.dlat).to_bits())
@@ -313,15 +344,53 @@ fn write_static_coords(store: &Path, meta: &CloudMapMeta, put: Put) -> Result<()
     Ok(())
 }
 
-/// Every array's `zarr.json` for the steps `metas`, then the group's (last).
-fn write_metadata(
+/// The motion `staged` (a series ingested in staging) stores between its steps, written as
+/// the store's intervals from `t0` on (its samples exactly: [`stored::read_samples`]); the
+/// staged series with each step's motion entry naming the store's arrays.
+fn staged_motion(store: &Path, t0: usize, staged: &Series, put: Put) -> Result<SeriesMeta> {
+    let dir = staged.path.parent().unwrap_or(Path::new("."));
+    let mut meta = staged.meta.clone();
+    for (k, step) in meta.steps.iter_mut().enumerate() {
+        if let Some(m) = &step.motion {
+            let s = stored::read_samples(dir, m).map_err(|e| fault(store, e))?;
+            write_interval(store, t0 + k, &s, put)?;
+            step.motion = Some(entry(&s));
+        }
+    }
+    Ok(meta)
+}
+
+/// The motion from the store's last step to the first of the steps `new` appends,
+/// estimated as a series' write estimates it (from the two maps, equal to the PNG maps).
+fn join_motion(store: &Store, new: &Series) -> Result<MotionSamples> {
+    let t = store.steps.len() - 1;
+    let (a, b) = (store.read_step(t)?, new.step_map(0)?);
+    let last = store.series.steps[t].forecast_hour;
+    let first = new.meta.steps[0].forecast_hour;
+    let m = crate::series::motion::estimate(&a, &b, (first - last) * 3600.0)?;
+    Ok(stored::samples(&m))
+}
+
+/// Every array's `zarr.json` for the steps `metas` (with the motion arrays when `motion`),
+/// then the group's (last).
+pub(crate) fn write_metadata(
     store: &Path,
     series: &SeriesMeta,
     metas: &[CloudMapMeta],
+    motion: bool,
     put: Put,
 ) -> Result<()> {
     let json_bytes = |v: &Value| serde_json::to_vec_pretty(v).unwrap_or_default();
-    for (name, a) in array_metas(series, metas) {
+    let lat = Lattices::of(&metas[0]);
+    let mut arrays = array_metas(series.reference_time, metas.len() as u64, &lat);
+    if motion {
+        let intervals = metas.len().saturating_sub(1) as u64;
+        arrays.extend(super::motion::array_metas(
+            (series.width, series.height),
+            intervals,
+        ));
+    }
+    for (name, a) in arrays {
         put(
             &store.join(name).join("zarr.json"),
             &json_bytes(&a.to_json()),
@@ -333,14 +402,42 @@ fn write_metadata(
     )
 }
 
-/// The arrays of a store of `metas` (data variables the first step has, and coordinates).
-fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, ArrayMeta)> {
-    let first = &metas[0];
-    let t = metas.len() as u64;
-    let units = format!(
-        "minutes since {}",
-        series.reference_time.format("%Y-%m-%d %H:%M:%S")
-    );
+/// The lattices of a store: the map's pixels, and the structure and ground lattices when
+/// its steps have them (one of each per store).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Lattices {
+    pub map: StructureGrid,
+    pub structure: Option<StructureGrid>,
+    pub ground: Option<StructureGrid>,
+}
+
+impl Lattices {
+    pub fn of(m: &CloudMapMeta) -> Lattices {
+        let (structure, ground) = lattices(m);
+        Lattices {
+            map: StructureGrid::of_map(&m.region, m.width, m.height),
+            structure,
+            ground,
+        }
+    }
+
+    pub fn get(&self, g: Grid) -> Option<StructureGrid> {
+        match g {
+            Grid::Map => Some(self.map),
+            Grid::Structure => self.structure,
+            Grid::Ground => self.ground,
+        }
+    }
+}
+
+/// The arrays of a store of `t` steps of the run `reference` on `lat` (data variables on the
+/// lattices it has, and coordinates).
+pub(crate) fn array_metas(
+    reference: DateTime<Utc>,
+    t: u64,
+    lat: &Lattices,
+) -> Vec<(String, ArrayMeta)> {
+    let units = format!("minutes since {}", reference.format("%Y-%m-%d %H:%M:%S"));
     let coord = |name: &str, n: u64, chunk: u64, dtype: Dtype| {
         let a = ArrayMeta {
             shape: vec![n],
@@ -362,20 +459,17 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
         coord("layer", 3, 3, Dtype::U8),
     ];
     for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
-        if let Some(g) = grid.of(first) {
-            let [lat, lon] = grid.dims();
-            v.push(coord(lat, g.height as u64, g.height as u64, Dtype::F64));
-            v.push(coord(lon, g.width as u64, g.width as u64, Dtype::F64));
+        if let Some(g) = lat.get(grid) {
+            let [y, x] = grid.dims();
+            v.push(coord(y, g.height as u64, g.height as u64, Dtype::F64));
+            v.push(coord(x, g.width as u64, g.width as u64, Dtype::F64));
         }
     }
     for var in &VARS {
-        let Some(g) = var.grid.of(first) else {
+        let Some(g) = lat.get(var.grid) else {
             continue;
         };
-        if var.grid == Grid::Structure && first.extra_images.is_empty() {
-            continue;
-        }
-        let [lat, lon] = var.grid.dims();
+        let [y, x] = var.grid.dims();
         let (mut shape, mut chunks, mut dims) = (vec![t], vec![1], vec!["time"]);
         if var.layered {
             shape.push(3);
@@ -384,7 +478,7 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
         }
         shape.extend([g.height as u64, g.width as u64]);
         chunks.extend([CHUNK_SIDE, CHUNK_SIDE]);
-        dims.extend([lat, lon]);
+        dims.extend([y, x]);
         let mut attributes = vars::attributes(var);
         attributes.insert("grid_mapping_note".into(), json!("EPSG:4326 pixel centres"));
         v.push((
@@ -402,14 +496,9 @@ fn array_metas(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Vec<(String, Arra
 }
 
 /// The group's `zarr.json`: CF run attributes, and the sidecars this reader rebuilds maps from.
-fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
-    // The motion images between steps (issue 31) are not carried by the store yet: its series
-    // names none, and the reader estimates each interval's motion when it is first blended, as
-    // for a series sidecar from before the motion.
-    let mut series = series.clone();
-    for step in &mut series.steps {
-        step.motion = None;
-    }
+pub(crate) fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
+    // Each step's motion entry names the store's motion arrays (`super::motion`), or is
+    // absent (a store from before them: the reader estimates the motion).
     let rh_cr: serde_json::Map<String, Value> = metas[0]
         .layers
         .iter()
@@ -432,7 +521,7 @@ fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
             "source_files": files,
             "region": series.region,
             "interpolation": metas[0].interpolation,
-            SERIES_ATTR: &series,
+            SERIES_ATTR: series,
             STEPS_ATTR: metas,
         }
     })

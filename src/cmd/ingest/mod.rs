@@ -23,7 +23,7 @@ pub struct Args {
     /// GRIB2 forecast file(s). Several steps of one run (several files in increasing forecast
     /// hour, or one file holding several steps) make a series: NAME-fHHH.png per step and the
     /// series sidecar NAME.json.
-    #[arg(required = true, num_args = 1..)]
+    #[arg(required_unless_present_any = ["motion", "finish"], num_args = 1..)]
     pub files: Vec<PathBuf>,
     #[command(flatten)]
     pub ingest: IngestOpts,
@@ -34,8 +34,44 @@ pub struct Args {
     pub out: PathBuf,
     /// With --out STORE.zarr: add the files' steps (later steps of the store's run, same
     /// region and size) to the existing store.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["plan", "step", "motion", "finish"])]
     pub append: bool,
+    #[command(flatten)]
+    pub batch: BatchArgs,
+}
+
+/// A store written by several processes (a Dask cluster: `python -m stratus.batch`;
+/// docs/zarr.md, "Batch"): `--plan` once, then `--step K` for every step and `--motion K` for
+/// every interval (in any order, any process, each step's after the plan and each interval's
+/// after its two steps), then `--finish` once. Every call names the run with `--run ID`.
+#[derive(clap::Args, Debug)]
+pub struct BatchArgs {
+    /// Batch, first call: create the store --out (which must not exist) for every step of
+    /// FILES, from their headers only (arrays, coordinates, time axis), and claim it for the
+    /// run --run (the folder .STORE.zarr.batch beside it; another run is refused).
+    #[arg(long, requires = "run", conflicts_with_all = ["step", "motion", "finish"])]
+    pub plan: bool,
+    /// Batch: write step K (0-based, time order) of the planned store; give the same FILES,
+    /// --region, --size and ingest options as --plan. Writes only time index K's chunks.
+    #[arg(long, value_name = "K", requires = "run", conflicts_with_all = ["motion", "finish"])]
+    pub step: Option<usize>,
+    /// Batch: write the motion from step K to step K + 1 (both already written) into the
+    /// planned store: only interval K's chunks. Needs no FILES.
+    #[arg(long, value_name = "K", requires = "run", conflicts_with = "finish")]
+    pub motion: Option<usize>,
+    /// Batch, last call: every step and interval written, write the store's series and step
+    /// records (what the Stratus reader needs) and release the run. Needs no FILES.
+    #[arg(long, requires = "run")]
+    pub finish: bool,
+    /// Batch: the run's id (any text without newlines; python -m stratus.batch makes one).
+    #[arg(long, value_name = "ID")]
+    pub run: Option<String>,
+}
+
+impl BatchArgs {
+    fn any(&self) -> bool {
+        self.plan || self.step.is_some() || self.motion.is_some() || self.finish
+    }
 }
 
 /// The output formats, chosen by the extension.
@@ -55,9 +91,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             shown(&args.out)
         ),
     };
-    if args.append {
+    if args.append || args.batch.any() {
         anyhow::bail!(
-            "{}: --append adds steps to a Zarr store; give --out STORE.zarr",
+            "{}: --append, --plan, --step, --motion and --finish write a Zarr store; give --out STORE.zarr",
             shown(&args.out)
         );
     }
