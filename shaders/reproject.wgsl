@@ -26,6 +26,14 @@ struct Reproject {
     valid: u32,                 // 0: no usable history (first frame, a teleport, a new map)
     prev_delta: vec3<f32>,      // previous camera position − this one (ECEF m)
     max_depth_change: f32,      // relative change of a pixel's distance that rejects its history
+    still: u32,                 // 0: the camera moved; k + 1: the k-th frame of a still camera
+    max_age: u32,               // a still view's marched pixel older than this (frames) is not kept
+    lattice_x: u32,             // the still view's lattice of young marched pixels: its offset
+    lattice_y: u32,
+    lattice_step: u32,          // and step (render::reproject::still_lattice)
+    whole: u32,                 // 1: the still view began after a full march: every pixel is its own
+    _pad1: u32,
+    _pad2: u32,
 };
 
 // Moved by less than this (px) since the last frame, a pixel keeps its history unclamped.
@@ -47,6 +55,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         // Marched this frame.
         textureStore(out_cloud, p, textureLoad(fresh_cloud, cell, 0));
         textureStore(out_scene, p, textureLoad(fresh_scene, cell, 0));
+        return;
+    }
+    if (rp.valid != 0u && rp.still != 0u) {
+        still_pixel(id.xy, size, n);
         return;
     }
     // Where the pixel sits among the fresh samples (sample c stands at pixel c·n + off).
@@ -142,4 +154,111 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     textureStore(out_cloud, p, out_c);
     textureStore(out_scene, p, out_s);
+}
+
+// Rank of a pixel of an n×n cell in the subset order (render::reproject::bayer): the Bayer
+// matrix, M₂ = [0 2; 3 1] at each bit of the position, the lowest bit weighing most.
+fn bayer_rank(q: vec2<u32>, n: u32) -> u32 {
+    var r = 0u;
+    var w = n * n / 4u;
+    for (var l = 0u; (1u << l) < n; l++) {
+        let x = (q.x >> l) & 1u;
+        let y = (q.y >> l) & 1u;
+        r += w * select(select(0u, 2u, x == 1u), select(3u, 1u, x == 1u), y == 1u);
+        w /= 4u;
+    }
+    return r;
+}
+
+struct Px {
+    c: vec4<f32>,
+    s: vec4<f32>,
+};
+
+// A pixel's own march in a still view: this frame's (the fresh texel it stands at) or kept.
+fn own_march(q: vec2<u32>, n: u32) -> Px {
+    if (all(q % n == vec2<u32>(f.subset_offset))) {
+        let cell = vec2<i32>(q / n);
+        return Px(textureLoad(fresh_cloud, cell, 0), textureLoad(fresh_scene, cell, 0));
+    }
+    return Px(textureLoad(hist_cloud, vec2<i32>(q), 0), textureLoad(hist_scene, vec2<i32>(q), 0));
+}
+
+// A still view (the camera has not moved for k + 1 frames, rp.still): a pixel marched in the
+// last max_age frames is kept whole (a still view gathers every pixel of its cell in n²
+// frames). Any other pixel is made from the still lattice, the pixels around it that were
+// marched recently (render::reproject::still_lattice): edge-aware bilinear from them once the
+// lattice is at most half a large cell (8 px or more: the last frame's picture, from the fresh
+// subset or a moving view's coarse history, is no better than that then), else
+// the last frame's pixel (no pop when the camera stops: it was the moving view's reprojected
+// picture, at least as good as a coarse lattice), clamped to their range only where time runs
+// fast enough to drift the clouds before the cell is marched whole. A still view that began
+// after a full march (rp.whole) keeps every pixel.
+fn still_pixel(p: vec2<u32>, size: vec2<u32>, n: u32) {
+    let nn = n * n;
+    let k = rp.still - 1u;
+    let r = bayer_rank(p % n, n);
+    let since = (k % nn + nn - r) % nn;
+    if (rp.whole != 0u || (k >= r && since < rp.max_age)) {
+        textureStore(out_cloud, p, textureLoad(hist_cloud, p, 0));
+        textureStore(out_scene, p, textureLoad(hist_scene, p, 0));
+        return;
+    }
+    let st = max(rp.lattice_step, 1u);
+    let o = vec2<u32>(rp.lattice_x, rp.lattice_y);
+    // The lattice pixel at or before p on each axis (the first one where p lies before it).
+    let q0 = o + select((p - o) / st, vec2<u32>(0u), p < o) * st;
+    let fr = clamp((vec2<f32>(p) - vec2<f32>(q0)) / f32(st), vec2<f32>(0.0), vec2<f32>(1.0));
+    var px: array<Px, 4>;
+    var wb: array<f32, 4>;
+    var best = 0;
+    for (var i = 0; i < 4; i++) {
+        let ij = vec2<u32>(u32(i & 1), u32(i >> 1));
+        // Past the picture's edge the lattice pixel before it stands in.
+        let q = select(q0 + ij * st, q0, q0 + ij * st >= size);
+        px[i] = own_march(q, n);
+        wb[i] = select(1.0 - fr.x, fr.x, ij.x == 1u) * select(1.0 - fr.y, fr.y, ij.y == 1u);
+        if (wb[i] > wb[best]) {
+            best = i;
+        }
+    }
+    let near = px[best];
+    var lo_c = vec4<f32>(1e30);
+    var hi_c = vec4<f32>(-1e30);
+    var lo_s = vec3<f32>(1e30);
+    var hi_s = vec3<f32>(-1e30);
+    var up_c = vec4<f32>(0.0);
+    var up_s = vec3<f32>(0.0);
+    var wsum = 0.0;
+    for (var i = 0; i < 4; i++) {
+        let c = px[i].c;
+        let s = px[i].s;
+        lo_c = min(lo_c, c);
+        hi_c = max(hi_c, c);
+        lo_s = min(lo_s, s.rgb);
+        hi_s = max(hi_s, s.rgb);
+        let far = max(max(s.a, near.s.a), 1e-3);
+        let dd = select(abs(s.a - near.s.a) / far, 1.0, (s.a > 0.0) != (near.s.a > 0.0));
+        // Across a change of distance only: within the cloud the opacity varies at the
+        // lattice's own scale, and weighting by it turns the fill into blocks.
+        let w = wb[i] / (1.0 + 8.0 * dd) + 1e-4;
+        up_c += w * c;
+        up_s += w * s.rgb;
+        wsum += w;
+    }
+    if (st * 2u <= n && n >= 8u) {
+        textureStore(out_cloud, p, up_c / wsum);
+        textureStore(out_scene, p, vec4<f32>(up_s / wsum, near.s.a));
+        return;
+    }
+    let hc = textureLoad(hist_cloud, p, 0);
+    let hs = textureLoad(hist_scene, p, 0);
+    if (rp.max_age >= nn) {
+        // The scene's time stands (or crawls): nothing drifts before the cell is marched whole.
+        textureStore(out_cloud, p, hc);
+        textureStore(out_scene, p, hs);
+        return;
+    }
+    textureStore(out_cloud, p, clamp(hc, lo_c, hi_c));
+    textureStore(out_scene, p, vec4<f32>(clamp(hs.rgb, lo_s, hi_s), hs.a));
 }

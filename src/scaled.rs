@@ -1,12 +1,16 @@
-//! A frame marched at a fraction of its output size and enlarged the way the window's CPU path
-//! does it (issue 30: `render --render-scale`): the march at the smaller size, then the present
-//! pass draws it into a target of the full size (`Renderer::encode` with the target's width),
-//! so a headless picture shows exactly what the window shows at that render scale.
+//! A frame at a render scale under 1, made the way the window's CPU path makes it (issue 30:
+//! `render --render-scale`), so a headless picture shows exactly what the window shows. Owns
+//! the rule ([`plan`]): a reprojected perspective marches (scale / n)² of the output's pixels a
+//! frame *at the output's size* in cells of n / scale pixels and reprojects the rest there
+//! (temporal super-resolution: a still view converges to the full-resolution picture); any
+//! other frame is marched at the smaller size and enlarged by the present pass into a target of
+//! the full size (`Renderer::encode` with the target's width).
 
 use std::time::Instant;
 
 use crate::render::readback::Pending;
-use crate::render::{RenderError, Renderer, Settings, View};
+use crate::render::settings::MAX_SUBSET;
+use crate::render::{RenderError, Renderer, Reprojection, Settings, View};
 
 /// The headless target's format (the present pass encodes sRGB itself, as into the window's).
 const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -18,6 +22,40 @@ pub fn march_size((w, h): (u32, u32), scale: f32) -> (u32, u32) {
         ((w as f32 * scale) as u32).max(1),
         ((h as f32 * scale) as u32).max(1),
     )
+}
+
+/// The reprojection cell side at render scale `scale` for a preset whose cell side is `n`:
+/// n / scale to the nearest power of two, at most [`MAX_SUBSET`]. A march of the output's
+/// size in these cells takes as many rays a frame as one at the render scale in n×n cells (the
+/// window's cost before issue 30: render scale ¼, `fast` → 16, one pixel in 256 a frame).
+pub fn cell(n: u32, scale: f32) -> u32 {
+    let t = n.max(1) as f32 / scale.clamp(0.05, 1.0);
+    let p = t
+        .log2()
+        .round()
+        .clamp(0.0, MAX_SUBSET.trailing_zeros() as f32);
+    1 << p as u32
+}
+
+/// How a frame of `size` at render scale `scale` is made: the march's size and the settings.
+/// A perspective with reprojection on and a preset that reprojects is marched at `size` itself
+/// in [`cell`]s; anything else at the scale ([`march_size`]), enlarged by the present pass.
+pub fn plan(
+    size: (u32, u32),
+    scale: f32,
+    view: &View,
+    settings: &Settings,
+) -> ((u32, u32), Settings) {
+    let n = settings.march.subset;
+    let reprojected = matches!(settings.reprojection, Reprojection::On { .. })
+        && matches!(view, View::Perspective(_))
+        && n > 1;
+    if !reprojected || scale >= 1.0 {
+        return (march_size(size, scale), settings.clone());
+    }
+    let mut s = settings.clone();
+    s.march.subset = cell(n, scale);
+    (size, s)
 }
 
 /// One frame: marched at `march` and enlarged to `out`. Returns the tone-mapped sRGB RGBA8
@@ -76,5 +114,15 @@ mod tests {
         assert_eq!(march_size((1280, 720), 0.25), (320, 180));
         assert_eq!(march_size((1280, 720), 1.0), (1280, 720));
         assert_eq!(march_size((10, 10), 0.01), (1, 1));
+    }
+
+    #[test]
+    fn a_reprojected_window_marches_as_many_rays_at_its_own_size() {
+        assert_eq!(cell(4, 0.25), 16);
+        assert_eq!(cell(4, 0.5), 8);
+        assert_eq!(cell(4, 1.0), 4);
+        assert_eq!(cell(2, 0.25), 8);
+        assert_eq!(cell(4, 0.05), MAX_SUBSET);
+        assert_eq!(cell(4, 0.3), 16);
     }
 }

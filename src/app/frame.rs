@@ -19,7 +19,6 @@ use crate::render::{Settings, View};
 /// What the UI step produced for the rest of the frame.
 struct UiFrame {
     settings: Settings,
-    march: (u32, u32),
     output: egui::FullOutput,
     actions: Actions,
 }
@@ -59,12 +58,24 @@ impl App {
         let device = r.renderer.gpu.device.clone();
         let mut enc = device.create_command_encoder(&Default::default());
         let view = View::Perspective(r.pilot.camera());
+        // At a render scale under 1: with --super-resolution a reprojected window marches in
+        // cells of its own size, else the march at the scale is enlarged.
+        let scale = r.controls.render_scale;
+        let (march, settings) = if self.opts.super_resolution {
+            crate::scaled::plan((tw, th), scale, &view, &ui.settings)
+        } else {
+            (
+                crate::scaled::march_size((tw, th), scale),
+                ui.settings.clone(),
+            )
+        };
+        r.march_size = march;
         r.renderer.encode(
             &mut enc,
             &view,
-            ui.march.0,
-            ui.march.1,
-            &ui.settings,
+            march.0,
+            march.1,
+            &settings,
             &target,
             r.screen.config.format,
             tw,
@@ -91,7 +102,7 @@ impl App {
 }
 
 impl Running {
-    /// The panel and HUD for this frame, and the settings and march size they give.
+    /// The panel and HUD for this frame, and the settings they give.
     fn build_ui(&mut self, follow: Option<String>) -> UiFrame {
         // The HUD shows what the last frame drew; the settings and march size are taken after
         // the panel, so a slider moved now is drawn this frame.
@@ -120,16 +131,8 @@ impl Running {
             panel::hud(ui, &hud);
         });
         let settings = self.controls.settings(self.valid_time, self.clock.frames);
-        let (tw, th) = (self.screen.config.width, self.screen.config.height);
-        let scale = self.controls.render_scale.clamp(0.05, 1.0);
-        let march = (
-            ((tw as f32 * scale) as u32).max(1),
-            ((th as f32 * scale) as u32).max(1),
-        );
-        self.march_size = march;
         UiFrame {
             settings,
-            march,
             output,
             actions,
         }

@@ -64,6 +64,9 @@ pub struct FlyOptions {
     /// `--render-scale`: the march's size relative to the window (default: 1 on a GPU, ¼ on a
     /// CPU adapter without reprojection, ½ with it).
     pub render_scale: Option<f32>,
+    /// `--super-resolution`: at a render scale under 1, reproject at the window's own size
+    /// (`scaled::plan`) instead of enlarging the march.
+    pub super_resolution: bool,
     /// `--visibility-km`: the haze's meteorological visibility (the panel changes it).
     pub visibility_km: f64,
     /// `--path`: the camera plays this keyframed flight in real time, looping (the frame-time

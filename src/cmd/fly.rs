@@ -52,6 +52,13 @@ pub struct Args {
     /// adapter).
     #[arg(long)]
     pub render_scale: Option<f32>,
+    /// Temporal super-resolution (issue 30): at a render scale under 1 with reprojection, march
+    /// the same number of rays a frame but at the window's own size, one pixel of each (n /
+    /// scale)² cell, so a still view converges to the full-resolution picture: on or off. Off
+    /// by default: on lavapipe it costs 1.5–3× the frame time of the enlarged march
+    /// (docs/footprint.md).
+    #[arg(long, default_value = "off", action = clap::ArgAction::Set, value_parser = parse_on_off)]
+    pub super_resolution: bool,
     /// Meteorological visibility in km (aerial haze; the panel changes it).
     #[arg(long, default_value_t = stratus::render::defaults::VISIBILITY_M / 1000.0)]
     pub visibility_km: f64,
@@ -150,6 +157,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         timeline,
         reprojection: a.reprojection,
         render_scale: a.render_scale,
+        super_resolution: a.super_resolution,
         visibility_km: a.visibility_km,
         path,
     })?;

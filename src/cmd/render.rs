@@ -56,9 +56,15 @@ pub struct Args {
     pub reprojection: bool,
     /// March at this fraction of --size (0.05..=1) and enlarge the march to --size in the
     /// present pass, as the window does at its render scale (`fly --render-scale`; a CPU
-    /// adapter's window defaults to 0.25): the window's picture, headless.
+    /// adapter's window defaults to 0.25): the window's picture, headless. With --reprojection
+    /// on the first frame is the fresh subset, as in the window.
     #[arg(long, default_value_t = 1.0)]
     pub render_scale: f32,
+    /// With --render-scale under 1 and --reprojection on: the window's `--super-resolution`
+    /// (marched at --size in cells of the preset's side over the scale; `fast` at 0.25: one
+    /// pixel of each 16×16 a frame) instead of the march at the scale enlarged.
+    #[arg(long, default_value = "off", action = clap::ArgAction::Set, value_parser = super::fly::parse_on_off)]
+    pub super_resolution: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -68,7 +74,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (map, mut timeline) = scene.for_renderer(a.look.moment()?)?;
     let mut settings = a.look.settings(&map, &a.map)?;
     if a.reprojection {
-        settings.reprojection = stratus::render::Reprojection::On { full_reset: true };
+        // At a render scale under 1 the window's own rule: its first frame is the fresh subset
+        // (the window never marches every pixel).
+        let full_reset = a.render_scale >= 1.0;
+        settings.reprojection = stratus::render::Reprojection::On { full_reset };
     }
     let view = match (&a.camera, a.top_down) {
         (_, true) => View::TopDown,
@@ -112,7 +121,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `--render-scale` below 1: each frame marched small and enlarged as the window does.
+/// `--render-scale` below 1: each frame made as the window makes it (`scaled::plan`).
 fn scaled(
     a: &Args,
     r: &mut Renderer,
@@ -120,10 +129,24 @@ fn scaled(
     size: (u32, u32),
     settings: &stratus::render::Settings,
 ) -> anyhow::Result<ExitCode> {
-    let march = stratus::scaled::march_size(size, a.render_scale);
+    // --super-resolution: marched at --size in cells of the preset's side over the scale, as
+    // the window does with it; else marched small and enlarged.
+    let (march, settings) = if a.super_resolution {
+        stratus::scaled::plan(size, a.render_scale, view, settings)
+    } else {
+        (
+            stratus::scaled::march_size(size, a.render_scale),
+            settings.clone(),
+        )
+    };
     let mut runs = Vec::new();
-    for _ in 0..a.repeat {
-        runs.push(stratus::scaled::render(r, view, march, size, settings)?);
+    for i in 0..a.repeat {
+        let mut s = settings.clone();
+        if a.reprojection {
+            // The window's frames count on (each its own jitter).
+            s.frame_index = settings.frame_index.wrapping_add(i);
+        }
+        runs.push(stratus::scaled::render(r, view, march, size, &s)?);
     }
     let ms = {
         let mut t: Vec<f64> = runs.iter().map(|x| x.1).collect();
@@ -134,14 +157,20 @@ fn scaled(
     let (img, _) = runs.pop().ok_or_else(|| anyhow::anyhow!("no frame"))?;
     save_png(&a.out, &img)?;
     if a.timings {
-        out!(
-            "wall {ms:.1} ms (median of {}; march {}×{} enlarged to {}×{})",
-            a.repeat,
-            march.0,
-            march.1,
-            size.0,
-            size.1
-        )?;
+        let how = if march == size {
+            format!(
+                "marched at {}×{} in {n}×{n} cells, one pixel of each a frame",
+                size.0,
+                size.1,
+                n = settings.march.subset
+            )
+        } else {
+            format!(
+                "march {}×{} enlarged to {}×{}",
+                march.0, march.1, size.0, size.1
+            )
+        };
+        out!("wall {ms:.1} ms (median of {}; {how})", a.repeat)?;
     }
     Ok(ExitCode::SUCCESS)
 }

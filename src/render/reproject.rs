@@ -28,6 +28,23 @@ crate::gpu_struct! {
         pub prev_delta: [f32; 3],
         /// Relative change of a pixel's distance beyond which its history is rejected.
         pub max_depth_change: f32,
+        /// 0: the camera moved since the last frame. k + 1: this is the k-th frame (from 0) the
+        /// camera has stood still, whose march took the cells' pixels of rank k in the subset
+        /// order: every pixel of rank ≤ k holds its own march.
+        pub still: u32,
+        /// A still view's pixel older than this many frames is not kept (the clouds drift
+        /// while time runs): u32::MAX while the scene's time stands.
+        pub max_age: u32,
+        /// The still view's lattice the other pixels are filled from: every pixel at
+        /// (`lattice_x`, `lattice_y`) + multiples of `lattice_step` holds its own march, none
+        /// older than `max_age` ([`still_lattice`]).
+        pub lattice_x: u32,
+        pub lattice_y: u32,
+        pub lattice_step: u32,
+        /// 1: the still view began after a full march young enough: every pixel holds its own.
+        pub whole: u32,
+        pub _pad1: u32,
+        pub _pad2: u32,
     }
 }
 
@@ -44,6 +61,12 @@ pub const TELEPORT_TURN_DEG: f64 = 30.0;
 /// 600 s a second of wall time, at most 1 s a frame (app::moment), so flying with time running
 /// keeps its history.
 pub const TIME_JUMP_S: i64 = 900;
+
+/// A still view keeps a marched pixel while the scene's time has moved less than this (s) since
+/// it was marched: with time running fast (the window's ×600) a pixel marched n² frames ago
+/// shows clouds that have since drifted. 600 s keeps the last 16 frames at ×600 (30 s a
+/// frame at 20 fps), as many as a 4×4 cell's history held before.
+pub const STILL_TIME_S: f64 = 600.0;
 
 /// Every binding of reproject.wgsl.
 pub const BINDINGS: &[Binding] = &[
@@ -151,11 +174,68 @@ fn looks_differ(a: &Settings, b: &Settings) -> bool {
         || a.sun_override != b.sun_override
 }
 
-/// The uniforms that move the last frame's pixels to this camera.
-pub fn params(last: Option<&FrameKey>, now: &Camera, valid: bool) -> ReprojectParams {
+/// Whether two cameras see the same pixels (a still view): position within 1 mm, the same
+/// orientation and field of view.
+pub fn same_view(a: &Camera, b: &Camera) -> bool {
+    let (p, q) = (a.basis(), b.basis());
+    p.position.distance(q.position) < 1e-3
+        && p.forward.dot(q.forward) > 1.0 - 1e-12
+        && p.view_up.dot(q.view_up) > 1.0 - 1e-12
+        && (a.fov_deg - b.fov_deg).abs() < 1e-9
+}
+
+/// The subset order's rank this frame marches: the still run's own count (so a still view
+/// gathers the cells' pixels from rank 0 up, coarse lattice first), else the running count.
+pub fn rank(still: u32, frames: u32) -> u32 {
+    if still > 0 {
+        still - 1
+    } else {
+        frames
+    }
+}
+
+/// How many frames a still view's pixel stays usable when the scene's time moves `dt_s` a frame.
+pub fn max_age(dt_s: f64) -> u32 {
+    if dt_s.abs() < 1e-3 {
+        u32::MAX
+    } else {
+        (STILL_TIME_S / dt_s.abs()).clamp(1.0, u32::MAX as f64) as u32
+    }
+}
+
+/// The densest lattice of a still view's own marches after its `k`-th frame (from 0) in an
+/// `n`×`n` cell, none older than `max_age` frames: (step, offset). The subset order's ranks
+/// b·4ʲ … (b+1)·4ʲ − 1 are the pixels at one offset and every (n / 2ʲ)-th pixel (the Bayer
+/// matrix's low digits fix the position's low bits), so the last whole block of 4ʲ ranks is a
+/// lattice whose oldest pixel is under 2·4ʲ frames old.
+pub fn still_lattice(n: u32, k: u32, max_age: u32) -> (u32, [u32; 2]) {
+    let n = n.max(1);
+    let mut j = 0;
+    while (1u64 << (2 * (j + 1))) <= u64::from(k) + 1
+        && (1u64 << (j + 1)) <= u64::from(n)
+        && (2u64 << (2 * (j + 1))) <= u64::from(max_age) + 1
+    {
+        j += 1;
+    }
+    let block = 1u32 << (2 * j);
+    let first = ((k + 1) / block - 1) * block;
+    (n >> j, subset_offset(n, first))
+}
+
+/// The uniforms that move the last frame's pixels to this camera. `still`: see
+/// [`ReprojectParams::still`]; `age`: [`max_age`]; `whole`: the frame before the still run
+/// marched every pixel.
+pub fn params(
+    last: Option<&FrameKey>,
+    now: &Camera,
+    valid: bool,
+    (still, age, whole): (u32, u32, bool),
+) -> ReprojectParams {
     let Some(last) = last.filter(|_| valid) else {
         return ReprojectParams::default();
     };
+    let n = last.subset;
+    let (lattice_step, [lattice_x, lattice_y]) = still_lattice(n, still.saturating_sub(1), age);
     let (a, b) = (last.camera.basis(), now.basis());
     let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32];
     ReprojectParams {
@@ -167,6 +247,13 @@ pub fn params(last: Option<&FrameKey>, now: &Camera, valid: bool) -> ReprojectPa
         valid: 1,
         prev_delta: v(a.position - b.position),
         max_depth_change: MAX_DEPTH_CHANGE,
+        still,
+        max_age: age,
+        lattice_step,
+        lattice_x,
+        lattice_y,
+        whole: u32::from(whole && still > 0 && still < age),
+        ..ReprojectParams::default()
     }
 }
 
@@ -296,6 +383,36 @@ mod tests {
         let b = subset_offset(4, 1);
         let d = (a[0] as i32 - b[0] as i32).abs() + (a[1] as i32 - b[1] as i32).abs();
         assert!(d >= 2, "{a:?} then {b:?}");
+    }
+
+    #[test]
+    fn a_still_views_lattice_holds_only_marched_pixels_young_enough() {
+        for n in [2, 4, 8, 16] {
+            for age in [1, 3, 20, u32::MAX] {
+                for k in 0..(3 * n * n) {
+                    let (step, [ox, oy]) = still_lattice(n, k, age);
+                    assert!(step >= 1 && n % step == 0 && ox < step && oy < step);
+                    // Every lattice pixel of the cell was marched at one of the last frames,
+                    // none older than `age` (or just now).
+                    for y in (oy..n).step_by(step as usize) {
+                        for x in (ox..n).step_by(step as usize) {
+                            let r = bayer(x, y, n);
+                            let kk = k % (n * n);
+                            assert!(k >= r || r <= kk, "n {n} k {k}: ({x},{y}) never marched");
+                            let since = (kk + n * n - r) % (n * n);
+                            assert!(
+                                since == 0 || since < age,
+                                "n {n} k {k} age {age}: ({x},{y}) {since} frames old"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        // Sixteen still frames in a 16×16 cell: the 4-px lattice is whole.
+        assert_eq!(still_lattice(16, 15, u32::MAX), (4, [0, 0]));
+        assert_eq!(still_lattice(16, 255, u32::MAX), (1, [0, 0]));
+        assert_eq!(still_lattice(4, 0, u32::MAX).0, 4);
     }
 
     fn key(lat: f64, heading: f64) -> FrameKey {

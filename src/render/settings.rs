@@ -49,6 +49,9 @@ pub struct Settings {
     pub reprojection: Reprojection,
 }
 
+/// Largest reprojection cell side (px): the window at render scale 0.125 with a 4-px preset.
+pub const MAX_SUBSET: u32 = 32;
+
 /// How frames are made from the ones before them (render::reproject).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Reprojection {
@@ -143,9 +146,11 @@ impl Settings {
         {
             return bad("step growth must be ≥ 0 and max steps in 1..=100000".into());
         }
-        if !(m.subset.is_power_of_two() && m.subset <= 8) {
+        // The presets use 1–4; a window at a render scale under 1 reprojects at its own size in
+        // cells of the preset's side over the scale (render scale ¼: 16).
+        if !(m.subset.is_power_of_two() && m.subset <= MAX_SUBSET) {
             return bad(format!(
-                "reprojection subset {} must be 1, 2, 4 or 8 pixels a side",
+                "reprojection subset {} must be a power of two up to {MAX_SUBSET} pixels a side",
                 m.subset
             ));
         }

@@ -89,6 +89,11 @@ pub(super) struct History {
     pub(super) frames: u32,
     /// Why the last frame did not use its history (`None`: it did).
     pub(super) last_reset: Option<&'static str>,
+    /// Frames the camera has stood still (0: it moved this frame; see
+    /// `reproject::ReprojectParams::still`).
+    pub(super) still: u32,
+    /// The last full march (every pixel) was at this still view's camera.
+    pub(super) whole: bool,
 }
 
 impl History {
@@ -131,6 +136,8 @@ impl History {
             last: None,
             frames: 0,
             last_reset: Some("first frame"),
+            still: 0,
+            whole: false,
         }
     }
 }
@@ -265,7 +272,8 @@ impl Renderer {
         let history = self.targets.as_ref().and_then(|t| t.history.as_ref());
         match (plan, history) {
             (Some(p), Some(h)) if !p.full => {
-                let [ox, oy] = reproject::subset_offset(h.n, h.frames);
+                let rank = reproject::rank(h.still, h.frames);
+                let [ox, oy] = reproject::subset_offset(h.n, rank);
                 uniforms.subset_n = h.n as f32;
                 uniforms.subset_offset = [ox as f32, oy as f32];
                 MarchStep {
@@ -326,12 +334,31 @@ impl Renderer {
             None => Some("first frame"),
             Some(last) => reproject::misfit(last, &now),
         };
-        let params = reproject::params(h.last.as_ref(), camera, misfit.is_none());
+        let mut age = u32::MAX;
+        h.still = match &h.last {
+            Some(last) if misfit.is_none() && reproject::same_view(&last.camera, camera) => {
+                let dt = (settings.time - last.time).num_milliseconds() as f64 * 1e-3;
+                age = reproject::max_age(dt);
+                h.still.saturating_add(1)
+            }
+            // A frame without history marches rank 0: a still view goes on from it.
+            _ if misfit.is_some() => 1,
+            _ => 0,
+        };
+        let full = misfit.is_some() && full_reset;
+        if full {
+            h.whole = true;
+        } else if misfit.is_some() || h.still == 0 {
+            h.whole = false;
+        }
+        let params = reproject::params(
+            h.last.as_ref(),
+            camera,
+            misfit.is_none(),
+            (h.still, age, h.whole),
+        );
         h.last_reset = misfit;
         h.last = Some(now);
-        Some(ReprojectionPlan {
-            full: misfit.is_some() && full_reset,
-            params,
-        })
+        Some(ReprojectionPlan { full, params })
     }
 }
