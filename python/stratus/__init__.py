@@ -123,6 +123,7 @@ def ingest(
     rh_cr_mid: Optional[float] = None,
     rh_cr_high: Optional[float] = None,
     interp: Optional[str] = None,
+    store: Optional[PathLike] = None,
 ) -> xr.Dataset:
     """Ingest GFS GRIB2 forecast file(s) into a CloudMap Dataset.
 
@@ -140,6 +141,9 @@ def ingest(
         top_hpa: highest level (lowest pressure, hPa) folded into the layers (default 100).
         rh_cr: critical humidity of every layer; ``rh_cr_low``/``_mid``/``_high`` one each.
         interp: ``spline``, ``catmull-rom``, ``bilinear`` or ``nearest``.
+        store: keep the Zarr store here (a new ``*.zarr`` path; an existing one is refused, as
+            the command refuses it) for :func:`render`, :func:`score` or ``xarray.open_zarr``;
+            by default it is written to a temporary folder and removed.
 
     Raises:
         ValueError: bad arguments or a file that is not a usable forecast.
@@ -160,10 +164,13 @@ def ingest(
             interp=interp,
         )
     )
+    if store is not None:
+        _native.ingest(argv, os.fspath(store))
+        return _dataset(_native.open(os.fspath(store)))
     with tempfile.TemporaryDirectory(prefix="stratus-ingest-") as d:
-        store = Path(d) / "map.zarr"
-        _native.ingest(argv, str(store))
-        return _dataset(_native.open(str(store)))
+        tmp = Path(d) / "map.zarr"
+        _native.ingest(argv, str(tmp))
+        return _dataset(_native.open(str(tmp)))
 
 
 def open(path: PathLike) -> xr.Dataset:  # noqa: A001 - the issue's name
