@@ -109,6 +109,27 @@ pub fn print_report(r: &Report) -> std::io::Result<()> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let report = report(&a)?;
+    if a.json {
+        out!("{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        print_report(&report)?;
+    }
+    if let Some(min) = a.min_dice {
+        if report.total.similarity.dice < min {
+            eprintln!(
+                "score: DSC {:.4} is below --min-dice {min}",
+                report.total.similarity.dice
+            );
+            return Ok(ExitCode::from(1));
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The report `run` prints (and the diff picture written): what `stratus.score` in Python
+/// returns, through this one function.
+pub fn report(a: &Args) -> anyhow::Result<Report> {
     for (name, t) in [("render", a.render_threshold), ("map", a.map_threshold)] {
         if !(0.0..1.0).contains(&t) {
             anyhow::bail!("--{name}-threshold {t} must be in 0..1");
@@ -160,19 +181,5 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(d) = &a.diff {
         save_png(d, &report.diff_picture())?;
     }
-    if a.json {
-        out!("{}", serde_json::to_string_pretty(&report)?)?;
-    } else {
-        print_report(&report)?;
-    }
-    if let Some(min) = a.min_dice {
-        if report.total.similarity.dice < min {
-            eprintln!(
-                "score: DSC {:.4} is below --min-dice {min}",
-                report.total.similarity.dice
-            );
-            return Ok(ExitCode::from(1));
-        }
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(report)
 }
