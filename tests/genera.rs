@@ -24,9 +24,17 @@ fn fast(map: &CloudMap) -> (Renderer, Settings) {
     (r, Settings::new(Preset::Fast, morning()))
 }
 
+/// The maps' region: 20–30°N 100–110°E (a top-down ray of a 200-pixel map is 5.6 km wide).
+const WIDE: Region = Region {
+    south: 20.0,
+    north: 30.0,
+    west: 100.0,
+    east: 110.0,
+};
+
 /// A low layer of one genus at one coverage everywhere, its columns 800–2000 m.
 fn uniform(genus: CloudType, c: f64, t: DateTime<Utc>) -> CloudMap {
-    column(genus, c, t, (800.0, 2000.0), 8.0)
+    column_in(WIDE, genus, c, t, (800.0, 2000.0), 8.0)
 }
 
 /// A low layer of one genus at coverage `c` everywhere, its columns `base`–`top` m, every
@@ -38,12 +46,18 @@ fn column(
     (base, top): (f64, f64),
     east: f64,
 ) -> CloudMap {
-    let region = Region {
-        south: 20.0,
-        north: 30.0,
-        west: 100.0,
-        east: 110.0,
-    };
+    column_in(WIDE, genus, c, t, (base, top), east)
+}
+
+/// As [`column`], over `region`.
+fn column_in(
+    region: Region,
+    genus: CloudType,
+    c: f64,
+    t: DateTime<Utc>,
+    (base, top): (f64, f64),
+    east: f64,
+) -> CloudMap {
     let mut map = CloudMap::from_fn(
         region,
         200,
@@ -69,29 +83,51 @@ fn column(
     map
 }
 
-/// Fraction of the top-down rays more than half opaque.
-fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> f64 {
+/// Fraction of the top-down rays more than half opaque, and their mean opacity.
+fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> (f64, f64) {
     r.set_map(map);
     let out = r.render(&View::TopDown, 200, 200, s).unwrap();
     let a = out.alpha();
-    a.iter().filter(|&&v| v > 0.5).count() as f64 / a.len() as f64
+    let mean = a.iter().map(|&v| v as f64).sum::<f64>() / a.len() as f64;
+    (
+        a.iter().filter(|&&v| v > 0.5).count() as f64 / a.len() as f64,
+        mean,
+    )
 }
+
+/// 25–25.5°N 105–105.5°E: a top-down ray of a 200-pixel map is 280 m wide, the cells (2 km
+/// apart) are drawn one by one.
+const NARROW: Region = Region {
+    south: 25.0,
+    north: 25.5,
+    west: 105.0,
+    east: 105.5,
+};
 
 #[test]
 fn a_cumulus_coverage_is_the_area_under_its_cells() {
     let t = morning();
     let (mut r, s) = fast(&uniform(CloudType::Cumulus, 0.5, t));
+    let near = |c: f64| column_in(NARROW, CloudType::Cumulus, c, t, (800.0, 2000.0), 8.0);
     for c in [0.15, 0.4, 0.7] {
-        let f = opaque_fraction(&mut r, &uniform(CloudType::Cumulus, c, t), &s);
-        println!("cumulus at coverage {c}: {f:.3} of the rays opaque");
+        let (f, _) = opaque_fraction(&mut r, &near(c), &s);
+        println!("cumulus at coverage {c}, rays 280 m wide: {f:.3} of the rays opaque");
         // Scattered cumulus is drawn, and broken cumulus has clear sky between its cells.
         assert!(
             (f - c).abs() < 0.1,
             "coverage {c}: {f:.3} of the rays opaque"
         );
+        // Rays 5.6 km wide cover several cells: each reads the field's mean (issue 30), an
+        // opacity of the coverage, not a coin toss.
+        let (_, mean) = opaque_fraction(&mut r, &uniform(CloudType::Cumulus, c, t), &s);
+        println!("cumulus at coverage {c}, rays 5.6 km wide: mean opacity {mean:.3}");
+        assert!(
+            (mean - c).abs() < 0.05,
+            "coverage {c}: mean opacity {mean:.3}"
+        );
     }
     // A stratiform deck at the same broken coverage is a deck: nearly every ray meets it.
-    let st = opaque_fraction(&mut r, &uniform(CloudType::Stratus, 0.7, t), &s);
+    let (st, _) = opaque_fraction(&mut r, &uniform(CloudType::Stratus, 0.7, t), &s);
     println!("stratus at coverage 0.7: {st:.3} of the rays opaque");
     assert!(st > 0.9, "stratus 0.7: {st:.3}");
 }
