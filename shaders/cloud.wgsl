@@ -35,6 +35,23 @@ const REFERENCE_THICKNESS_M: f32 = 2000.0;
 // from the column's base to its top (m).
 const STREAK_STRETCH: f32 = 8.0;
 const STREAK_SHEAR_M: f32 = 3000.0;
+// Breaking the streaks' period (issue 30). The noise tile repeats every 24 km / the genus'
+// frequency, and squeezed along the wind its repeats line up across the streaks as evenly
+// spaced parallel bands (a washboard). Two things break it: (1) the streaked position is turned
+// by a fixed, generic rotation (STREAK_ROT: axis (0.42, 0.71, 0.57), 0.83 rad) before the noise
+// is read, so no axis of the tile, whose repeats are along its axes, lies across the streaks of
+// any region (a region at 0° or 90° of longitude had the tile's own axis along the parallels);
+// (2) the coordinate across the streaks is warped by two slow waves of incommensurate lengths
+// (STREAK_WARP_L_M), their phases bent along the wind, so the spacing of successive streaks
+// varies by up to ±35 % (the waves' amplitude over length, 0.22 + 0.13: it never folds). Both keep the noise's values and
+// their distribution (a rotation and a shift): the layer's coverage is unchanged.
+const STREAK_ROT: mat3x3<f32> = mat3x3<f32>(
+    vec3<f32>(0.7319, 0.5159, -0.4451),
+    vec3<f32>(-0.3231, 0.8379, 0.4400),
+    vec3<f32>(0.5999, -0.1782, 0.7799),
+);
+const STREAK_WARP_L_M: vec2<f32> = vec2<f32>(9100.0, 23700.0);
+const STREAK_WARP_A_M: vec2<f32> = vec2<f32>(2000.0, 3000.0);
 // Cumulonimbus towers: their grid spacing and a trunk's radius at full coverage (km).
 const TOWER_SPACING_KM: f32 = 40.0;
 const TOWER_RADIUS_KM: f32 = 7.0;
@@ -50,6 +67,11 @@ const CELL_DENSITY: f32 = 1.5;
 const CELL_FREQ: f32 = 8.0;
 const CELL_MID: f32 = 0.8;
 const CELL_MIN_M: f32 = 1000.0;
+// The cells' spacing on the ground (render::cells: 24 cells over the 48 km tile). Where a
+// sample's footprint is half of it the cells start fading into their mean (a uniform slab whose
+// opacity straight down is the coverage, cumulus_slab), and at the whole spacing they are gone:
+// two footprints a cell, the most a pixel can draw (issue 30).
+const CELL_SPACING_M: f32 = 2000.0;
 // The anvil's shield (GFS's high cover over deep convection) fills the column from this height
 // fraction up: a flat sheet under the top that the towers rise into.
 const ANVIL_FROM: f32 = 0.72;
@@ -168,6 +190,10 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
 // set by the march before each density look-up and kept for that sample's light samples; 0
 // (a point) in the stages that set nothing (section, shadow).
 var<private> footprint_m: f32;
+// How many times faster than the world the noise is read where the current sample is (a
+// warped streak's compression across the wind, streaked): its level of detail is that much
+// coarser. 1 everywhere else; column_density sets it for its one carve and puts it back.
+var<private> footprint_scale: f32 = 1.0;
 // Texels per side of the shape and detail noise (render::noise::SHAPE_SIZE, DETAIL_SIZE).
 const SHAPE_TEXELS: f32 = 128.0;
 const DETAIL_TEXELS: f32 = 32.0;
@@ -175,7 +201,7 @@ const DETAIL_TEXELS: f32 = 32.0;
 // The mip level whose texel is the footprint's width, for a noise of `texel_m` metres a texel:
 // detail finer than about two footprints is averaged away, not point-sampled.
 fn footprint_lod(texel_m: f32) -> f32 {
-    return log2(max(footprint_m / texel_m, 1.0));
+    return log2(max(footprint_m * footprint_scale / texel_m, 1.0));
 }
 
 // Carve the noise: what survives the threshold `lo` (after scaling the noise by `ns_scale`; the
@@ -298,7 +324,15 @@ fn tower_cover(uv: vec2<f32>, ph: f32, body_cm: f32) -> f32 {
         let d = length(g - (vec2<f32>(cell) + 0.2 + 0.6 * hs.xy));
         t = max(t, 1.0 - d / (r_base * (0.6 + 0.8 * hs.z) * widen));
     }
-    return sat(0.5 + 2.0 * t);
+    // Where a trunk is narrower than two footprints it fades into its mean (issue 30): the share
+    // of the ground the trunks cover, π (r·widen)² × E[(0.6 + 0.8 z)²] = 1.053 a tower cell.
+    // Seen from afar (the score's nadir rays, a map pixel wide) a trunk is not an opaque point
+    // wherever a ray happens to hit one, but what the convective cloud covers.
+    let r_w = r_base * widen;
+    let mean = min(3.14159 * r_w * r_w * 1.053, 1.0);
+    let trunk_m = 2.0 * r_w * TOWER_SPACING_KM * 1000.0;
+    let fade = smoothstep(0.5, 1.0, footprint_m * footprint_scale / trunk_m);
+    return mix(sat(0.5 + 2.0 * t), mean, fade);
 }
 
 // A cheap hash of a 200 m cell of noise space, in 0..1.
@@ -319,7 +353,8 @@ fn cell_hash(np: vec3<f32>) -> f32 {
 // would jump there; and not from the point itself, whose position is radial, with no
 // component along its wind to squeeze. One direction for the region: far from the centre the
 // squeezed coordinate moves by distance × the direction's change, so a direction varying from
-// column to column (or in time) would scramble the pattern.
+// column to column (or in time) would scramble the pattern. Warped across the wind
+// (STREAK_WARP_*), and sets footprint_scale to the warp's compression there.
 fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
     let lat = radians(f.region_north - uv.y * (f.region_north - f.region_south));
     let lon = radians(f.region_west + uv.x * f.region_lon_span);
@@ -328,7 +363,19 @@ fn streaked(uv: vec2<f32>, h: f32, ph: f32, dir: vec2<f32>) -> vec3<f32> {
     let up = vec3<f32>(cos(lat) * cos(lon), cos(lat) * sin(lon), sin(lat));
     let d = dir.x * east + dir.y * north;
     let p = up * (EARTH_R + h) - f.region_origin;
-    return p - d * (dot(p, d) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
+    let q = p - d * (dot(p, d) * (1.0 - 1.0 / STREAK_STRETCH) - ph * STREAK_SHEAR_M);
+    // The across-streak warp (STREAK_WARP_*): a shift across the wind that varies slowly across
+    // it (spacing) and, through its phase, along it (the streaks bend a little).
+    let across = normalize(cross(up, d));
+    let x = dot(p, across);
+    let a = dot(p, d);
+    let ph1 = x / STREAK_WARP_L_M.x + 1.3 * sin(a / 61000.0);
+    let ph2 = x / STREAK_WARP_L_M.y + 2.1 + 0.9 * sin(a / 97000.0 + 1.7);
+    let w = STREAK_WARP_A_M.x * sin(ph1) + STREAK_WARP_A_M.y * sin(ph2);
+    // The warp's slope across the wind: the noise is read 1 + slope times as fast there.
+    let slope = STREAK_WARP_A_M.x / STREAK_WARP_L_M.x * cos(ph1) + STREAK_WARP_A_M.y / STREAK_WARP_L_M.y * cos(ph2);
+    footprint_scale = max(1.0 + slope, 1.0);
+    return q + across * w;
 }
 
 // Where map uv is on the plane tangent to the sea-level sphere at the region's centre (m, east
@@ -367,7 +414,33 @@ fn cumulus_carving(uv: vec2<f32>, k: i32, cm: f32, ph: f32, thick: f32) -> Carvi
     // Solid from the base (60 % at once), the billows' relief on the surface.
     let gd = CELL_DENSITY * (0.6 + 0.4 * sat(2.0 * ph));
     let outside = inside * CELL_EDGE < CELL_MID - 1.0;
+    cell_tall_m = tall;
     return Carving(1.0, CELL_MID - inside * CELL_EDGE, select(gd, 0.0, outside), CELL_FREQ);
+}
+
+// The height (m) of the cell cumulus_carving last looked at.
+var<private> cell_tall_m: f32;
+
+// A cumulus field seen from farther than its cells can be drawn (issue 30): their mean, a
+// slab from the column's base up to the cell's height whose optical depth straight down,
+// −ln(1 − cm), lets through what a fraction cm of opaque cells does, so a pixel over many cells
+// is as opaque as the field's coverage (the cells are calibrated to that mean:
+// examples/coverage_ramp.rs), the same value from one frame to the next. Density (the carve's
+// units, before the column's scale).
+fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
+    let tall = max(cell_tall_m, 50.0);
+    let tau = -log(max(1.0 - cm, 0.02));
+    // A raised cosine over the cells' height, its integral the height: smooth at both ends, so
+    // a march step that crosses the slab's top or bottom does not add or lose optical depth (a
+    // flat slab with hard ends was drawn up to a step too deep: the field's edge a block wide).
+    let z = ph * thick / tall;
+    return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z > 1.0);
+}
+
+// How far the cells have faded into their mean at the current sample's footprint: 0 for a
+// footprint under half their spacing, 1 at the whole spacing and beyond.
+fn cell_fade() -> f32 {
+    return smoothstep(0.5, 1.0, footprint_m * footprint_scale / CELL_SPACING_M);
 }
 
 // Density at altitude h in the column at map uv, from the column's own base, top and genus
@@ -436,6 +509,9 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
     let nq = drifted(np, max(k, 0));
     var p = nq;
     var c: Carving;
+    // A cumulus field's mean where its cells are finer than the footprint (cumulus_slab).
+    var fade = 0.0;
+    var slab = 0.0;
     if (code < 0.5) {
         c = layer_carving(cm, ph);
     } else if (feature(FLAG_CELLS) && code == T_CUMULUS) {
@@ -443,6 +519,11 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
         // A cell's density is the cloud's own, not normalised to the column: its coverage is
         // its area.
         scale = f.density_mul;
+        fade = cell_fade();
+        slab = cumulus_slab(cm, ph, thick);
+        if (fade >= 1.0) {
+            c.gd = 0.0;
+        }
     } else {
         c = genus_carving(cm, ph, code);
         if (feature(FLAG_STREAKS) && code >= T_CIRRUS && code <= T_CIRROSTRATUS) {
@@ -452,11 +533,13 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
             let wl = select(w.zw, w.xy, k == 2);
             let dir = select(f.streak_dir.zw, f.streak_dir.xy, k == 2);
             if (dot(wl, wl) >= 1.0 && dot(dir, dir) > 0.5) {
-                p = streaked(uv, h, ph, dir) + (nq - np);
+                p = STREAK_ROT * (streaked(uv, h, ph, dir) + (nq - np));
             }
         }
     }
-    return carve_with(p, c, cm, ph, detail) * scale;
+    let carved = mix(carve_with(p, c, cm, ph, detail), slab, fade) * scale;
+    footprint_scale = 1.0;
+    return carved;
 }
 
 // Density (unitless, DESIGN's d summed over layers) at altitude h, direction pos, noise np.

@@ -24,9 +24,17 @@ fn fast(map: &CloudMap) -> (Renderer, Settings) {
     (r, Settings::new(Preset::Fast, morning()))
 }
 
+/// The maps' region: 20–30°N 100–110°E (a top-down ray of a 200-pixel map is 5.6 km wide).
+const WIDE: Region = Region {
+    south: 20.0,
+    north: 30.0,
+    west: 100.0,
+    east: 110.0,
+};
+
 /// A low layer of one genus at one coverage everywhere, its columns 800–2000 m.
 fn uniform(genus: CloudType, c: f64, t: DateTime<Utc>) -> CloudMap {
-    column(genus, c, t, (800.0, 2000.0), 8.0)
+    column_in(WIDE, genus, c, t, (800.0, 2000.0), 8.0)
 }
 
 /// A low layer of one genus at coverage `c` everywhere, its columns `base`–`top` m, every
@@ -38,12 +46,18 @@ fn column(
     (base, top): (f64, f64),
     east: f64,
 ) -> CloudMap {
-    let region = Region {
-        south: 20.0,
-        north: 30.0,
-        west: 100.0,
-        east: 110.0,
-    };
+    column_in(WIDE, genus, c, t, (base, top), east)
+}
+
+/// As [`column`], over `region`.
+fn column_in(
+    region: Region,
+    genus: CloudType,
+    c: f64,
+    t: DateTime<Utc>,
+    (base, top): (f64, f64),
+    east: f64,
+) -> CloudMap {
     let mut map = CloudMap::from_fn(
         region,
         200,
@@ -69,29 +83,51 @@ fn column(
     map
 }
 
-/// Fraction of the top-down rays more than half opaque.
-fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> f64 {
+/// Fraction of the top-down rays more than half opaque, and their mean opacity.
+fn opaque_fraction(r: &mut Renderer, map: &CloudMap, s: &Settings) -> (f64, f64) {
     r.set_map(map);
     let out = r.render(&View::TopDown, 200, 200, s).unwrap();
     let a = out.alpha();
-    a.iter().filter(|&&v| v > 0.5).count() as f64 / a.len() as f64
+    let mean = a.iter().map(|&v| v as f64).sum::<f64>() / a.len() as f64;
+    (
+        a.iter().filter(|&&v| v > 0.5).count() as f64 / a.len() as f64,
+        mean,
+    )
 }
+
+/// 25–25.5°N 105–105.5°E: a top-down ray of a 200-pixel map is 280 m wide, the cells (2 km
+/// apart) are drawn one by one.
+const NARROW: Region = Region {
+    south: 25.0,
+    north: 25.5,
+    west: 105.0,
+    east: 105.5,
+};
 
 #[test]
 fn a_cumulus_coverage_is_the_area_under_its_cells() {
     let t = morning();
     let (mut r, s) = fast(&uniform(CloudType::Cumulus, 0.5, t));
+    let near = |c: f64| column_in(NARROW, CloudType::Cumulus, c, t, (800.0, 2000.0), 8.0);
     for c in [0.15, 0.4, 0.7] {
-        let f = opaque_fraction(&mut r, &uniform(CloudType::Cumulus, c, t), &s);
-        println!("cumulus at coverage {c}: {f:.3} of the rays opaque");
+        let (f, _) = opaque_fraction(&mut r, &near(c), &s);
+        println!("cumulus at coverage {c}, rays 280 m wide: {f:.3} of the rays opaque");
         // Scattered cumulus is drawn, and broken cumulus has clear sky between its cells.
         assert!(
             (f - c).abs() < 0.1,
             "coverage {c}: {f:.3} of the rays opaque"
         );
+        // Rays 5.6 km wide cover several cells: each reads the field's mean (issue 30), an
+        // opacity of the coverage, not a coin toss.
+        let (_, mean) = opaque_fraction(&mut r, &uniform(CloudType::Cumulus, c, t), &s);
+        println!("cumulus at coverage {c}, rays 5.6 km wide: mean opacity {mean:.3}");
+        assert!(
+            (mean - c).abs() < 0.05,
+            "coverage {c}: mean opacity {mean:.3}"
+        );
     }
     // A stratiform deck at the same broken coverage is a deck: nearly every ray meets it.
-    let st = opaque_fraction(&mut r, &uniform(CloudType::Stratus, 0.7, t), &s);
+    let (st, _) = opaque_fraction(&mut r, &uniform(CloudType::Stratus, 0.7, t), &s);
     println!("stratus at coverage 0.7: {st:.3} of the rays opaque");
     assert!(st > 0.9, "stratus 0.7: {st:.3}");
 }
@@ -237,4 +273,124 @@ fn a_cumulonimbus_trunk_is_denser_than_a_cumulus_not_a_veil() {
         "trunk {trunk} against a cumulus cell's {cell}"
     );
     assert!(trunk > 3.0 * stratus, "trunk {trunk}, deck {stratus}");
+}
+
+/// A high layer of cirrus at coverage `c` everywhere over 40–50°N 5°W–5°E (the tile's worst
+/// place: at 0° of longitude the east is one of the noise tile's own axes), columns 7–8 km,
+/// a 30 m/s westerly.
+fn cirrus_sheet(c: f64, t: DateTime<Utc>) -> CloudMap {
+    let region = Region {
+        south: 40.0,
+        north: 50.0,
+        west: -5.0,
+        east: 5.0,
+    };
+    let mut map = CloudMap::from_fn(
+        region,
+        200,
+        200,
+        &[(LayerKind::High, 7000.0, 8000.0)],
+        t,
+        |_, _| [0.0, 0.0, c],
+    );
+    let g = StructureGrid::of_map(&region, 20, 20);
+    let n = (g.width * g.height) as usize;
+    let alt = |m: f64| {
+        let s = altitude_to_sample(Some(m));
+        [0, 0, s, s]
+    };
+    map.structure = Some(MapStructure {
+        grid: g,
+        base: vec![alt(7000.0); n],
+        top: vec![alt(8000.0); n],
+        types: vec![[0, 0, CloudType::Cirrus.code(), 0]; n],
+        wind_u: vec![[wind_to_sample(30.0); 3]; n],
+        wind_v: vec![[wind_to_sample(0.0); 3]; n],
+    });
+    map
+}
+
+/// The power spectrum of an image's columns (each with its mean taken off, under a Hann
+/// window), averaged over the columns: index k is k cycles over the height.
+fn column_spectrum(a: &[f32], w: usize, h: usize) -> Vec<f64> {
+    let mut s = vec![0.0; h / 2];
+    for x in 0..w {
+        let col: Vec<f64> = (0..h).map(|y| a[y * w + x] as f64).collect();
+        let mean = col.iter().sum::<f64>() / h as f64;
+        let win: Vec<f64> = col
+            .iter()
+            .enumerate()
+            .map(|(y, v)| {
+                let hann = 0.5 - 0.5 * (std::f64::consts::TAU * y as f64 / h as f64).cos();
+                (v - mean) * hann
+            })
+            .collect();
+        for (k, sk) in s.iter_mut().enumerate() {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (y, v) in win.iter().enumerate() {
+                let ph = std::f64::consts::TAU * (k * y) as f64 / h as f64;
+                re += v * ph.cos();
+                im -= v * ph.sin();
+            }
+            *sk += (re * re + im * im) / w as f64;
+        }
+    }
+    s
+}
+
+/// The cirrus streaks are not a washboard (issue 30): straight down from 80 km on a uniform
+/// sheet of cirrus streaked by a westerly, the picture's luminance across the streaks (down its
+/// columns) has no single period standing out of its spectrum. Before the period was broken
+/// the strongest, 5 cycles over the height with its harmonics, was 16.9× the band's median
+/// power; now 3.3× (docs/footprint.md, "Breaking the cirrus period", which renders this map
+/// with `stratus render` before and after). The sheet's mean luminance is unchanged (0.810).
+#[test]
+fn cirrus_streaks_have_no_single_period() {
+    let t = morning();
+    let map = cirrus_sheet(0.6, t);
+    // The map, for `stratus render` with another build (docs/footprint.md's before and after).
+    if let Ok(p) = std::env::var("STRATUS_STREAKS_MAP") {
+        map.save(std::path::Path::new(&p)).unwrap();
+    }
+    let (mut r, mut s) = fast(&map);
+    s.time = DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
+    let (w, h) = (128usize, 192usize);
+    let view = View::Perspective(stratus::render::Camera::new(
+        45.0, 0.0, 80_000.0, 0.0, -90.0,
+    ));
+    let o = r.render(&view, w as u32, h as u32, &s).unwrap();
+    if let Ok(p) = std::env::var("STRATUS_STREAKS_PNG") {
+        o.to_image().save(p).unwrap();
+    }
+    let mean = o.alpha().iter().map(|&v| v as f64).sum::<f64>() / (w * h) as f64;
+    // Rec. 709 luminance of the picture's sRGB values, 0..1.
+    let lum: Vec<f32> = o
+        .pixels
+        .chunks_exact(4)
+        .map(|p| (0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32) / 255.0)
+        .collect();
+    let spec = column_spectrum(&lum, w, h);
+    // Wavelengths from a third of the height (64 px, 32 km) down to 4 px.
+    let band = &spec[3..h / 4];
+    let mut sorted = band.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let (k, peak) = band
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| (i + 3, p))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    let ratio = peak / median;
+    println!(
+        "cirrus 0.6 from 80 km: mean opacity {mean:.3}; strongest period {:.1} px ({k} cycles), {ratio:.1}× the band's median power",
+        h as f64 / k as f64
+    );
+    assert!(mean > 0.2, "the sheet is drawn: mean opacity {mean:.3}");
+    assert!(
+        ratio < 8.0,
+        "a single period stands out: {ratio:.1}× at {k} cycles"
+    );
 }

@@ -312,12 +312,9 @@ impl Case {
 /// level (850–300 hPa) or all layers, an rh_cr and a preset; each must reach the gate. The seed
 /// is printed (STRATUS_SCORE_SEED=N repeats a run; STRATUS_SCORE_CASES=N draws N, default 3).
 ///
-/// Ignored until the footprint-aware march (issue 30): measured on this code over 16 draws
-/// (seeds 30 and 2026), 6 score below 0.95 (0.815–0.946; median of all 0.978), mostly single
-/// low levels and all layers over the tropics (docs/footprint.md, "The Dice gate beyond its
-/// cases").
+/// Measured over 16 draws (seeds 30 and 2026) after issue 30's fixes: every one ≥ 0.95
+/// (docs/footprint.md, "The Dice gate beyond its cases": before them 6 of 16 were below).
 #[test]
-#[ignore = "today's renders score below 0.95 on many drawn maps (docs/footprint.md)"]
 fn gate_holds_on_random_maps() {
     let seed = std::env::var("STRATUS_SCORE_SEED")
         .ok()

@@ -276,9 +276,24 @@ fn light_and_terrain_at_the_extremes() {
     let map = CloudMap::load(&sidecar).expect("the map");
     let (ground, _) = map.ground_height_m(33.0, 85.0);
     assert!(ground > 4000.0, "Tibet's ground is {ground} m");
+    // The footprints at their extremes too (issue 30): a pixel tens of metres wide near the
+    // ground, and kilometres wide from 80 km straight down or along rays grazing the Earth's
+    // limb (the horizon's dip from 80 km is 9.0°), where every pattern has faded to its mean.
     let cameras = [
         ("on the terrain", cam(33.0, 85.0, ground + 2.0, 0.0, 10.0)),
         ("80 km up", cam(30.0, 80.0, 80_000.0, 0.0, -60.0)),
+        (
+            "80 km up, straight down",
+            cam(30.0, 80.0, 80_000.0, 0.0, -90.0),
+        ),
+        (
+            "80 km up, grazing the horizon",
+            cam(30.0, 80.0, 80_000.0, 70.0, -8.9),
+        ),
+        (
+            "on the terrain, grazing the horizon",
+            cam(33.0, 85.0, ground + 2.0, 270.0, 0.0),
+        ),
         ("straight up", cam(33.0, 85.0, ground + 2.0, 0.0, 90.0)),
         ("straight down", cam(33.0, 85.0, 12_000.0, 0.0, -90.0)),
     ];

@@ -168,18 +168,22 @@ impl Prepared {
                 widened((alt(s.base[k][c], band(c).0), alt(s.top[k][c], band(c).1)))
             });
             let (b, t) = (col.map(|c| c.0), col.map(|c| c.1));
-            let conv = widened((alt(s.base[k][3], b[0]), alt(s.top[k][3], t[0])));
+            let mut conv = widened((alt(s.base[k][3], b[0]), alt(s.top[k][3], t[0])));
             let codes = s.types[k];
             // Only layers the map has: a code in an absent layer's channel is never drawn.
             let has = |c: usize| bands[c].is_some();
             if (0..3).any(|c| has(c) && codes[c] == CB) {
-                // The tower spans the convective cloud, and at least the Cb layers it replaces.
-                let (mut lo, mut hi) = conv;
+                // The tower spans the convective cloud, and at least the Cb layers it replaces:
+                // the march draws a Cb layer only through the tower (cloud.wgsl), so a Cb layer
+                // outside the texel's convective column would be drawn as nothing. An analysis
+                // has no convective cloud (its Cb are typed from CAPE, docs/ingest.md rule 1′):
+                // there the column was the low layer's alone, and the anvils of the high layer
+                // over it were missing (issue 30, the Dice gate beyond its cases).
                 for c in (0..3).filter(|&c| has(c) && codes[c] == CB) {
-                    lo = lo.min(b[c]);
-                    hi = hi.max(t[c]);
+                    conv.0 = conv.0.min(b[c]);
+                    conv.1 = conv.1.max(t[c]);
                 }
-                towers = Some(towers.map_or((lo, hi), |(a, z)| (a.min(lo), z.max(hi))));
+                towers = Some(towers.map_or(conv, |(a, z)| (a.min(conv.0), z.max(conv.1))));
             }
             streaks |= (0..3).any(|c| has(c) && is_streaked(codes[c]));
             cells |= (0..3).any(|c| has(c) && codes[c] == CU);
