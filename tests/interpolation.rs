@@ -119,16 +119,7 @@ fn carried_series(real: &Path, px: usize) -> PathBuf {
         region: m.meta.region,
         width: m.meta.width,
         height: m.meta.height,
-        layers: m
-            .meta
-            .layers
-            .iter()
-            .map(|l| SeriesLayer {
-                kind: l.kind,
-                channel: l.channel,
-                levels_hpa: l.levels_hpa.clone(),
-            })
-            .collect(),
+        layers: m.meta.layers.iter().map(SeriesLayer::from).collect(),
         steps,
     };
     let path = dir.join("moved.json");

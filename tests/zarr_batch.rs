@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use common::{sample, stratus};
+use common::{ok, refused_one_line, sample, stratus};
 use stratus_ingest::series::Series;
 use stratus_ingest::zarr::Store;
 
@@ -34,18 +34,6 @@ fn ingest(files: &[String], args: &[&str]) -> std::process::Output {
     a.extend(files.iter().map(String::as_str));
     a.extend_from_slice(args);
     stratus(&a)
-}
-
-fn ok(o: &std::process::Output) {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-}
-
-/// Exit 2 with one stderr line holding `needle`.
-fn refused(o: &std::process::Output, needle: &str) {
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
-    assert!(err.contains(needle), "expected {needle:?} in: {err}");
 }
 
 /// Every file under `dir` (relative path) with its bytes.
@@ -141,40 +129,40 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
     ok(&call(&f, &["--plan", "--run", "r1"]));
     // A second run on the store is refused at its run folder; the store is unchanged.
     let planned = snapshot(&out);
-    refused(
+    refused_one_line(
         &call(&f, &["--plan", "--run", "r2"]),
         "another batch run (r1)",
     );
-    refused(
+    refused_one_line(
         &call(&f, &["--step", "0", "--run", "r2"]),
         "batch run r1, not r2",
     );
-    refused(
+    refused_one_line(
         &call(&f, &["--step", "2", "--run", "r1"]),
         "outside the plan",
     );
-    refused(
+    refused_one_line(
         &call(&f[..1], &["--step", "0", "--run", "r1"]),
         "not the plan's",
     );
     let mut other = vec!["--region", "30,65,-60,11", "--size", "260x140", "--out", o];
     other.extend(["--step", "0", "--run", "r1"]);
-    refused(&ingest(&f, &other), "the plan is region");
-    refused(
+    refused_one_line(&ingest(&f, &other), "the plan is region");
+    refused_one_line(
         &call(&[], &["--motion", "0", "--run", "r1"]),
         "step 0 is not written yet",
     );
-    refused(&call(&[], &["--finish", "--run", "r1"]), "not written yet");
+    refused_one_line(&call(&[], &["--finish", "--run", "r1"]), "not written yet");
     // The store is not a Stratus map until the run finishes.
     let probe = stratus(&["probe", "--map", o, "--at", "50,-25"]);
-    refused(&probe, "has not finished");
+    refused_one_line(&probe, "has not finished");
     assert!(snapshot(&out) == planned, "a refused call wrote something");
 
     // The steps in reverse order, as a cluster may run them; a step repeated (retried).
     ok(&call(&f, &["--step", "1", "--run", "r1"]));
     ok(&call(&f, &["--step", "0", "--run", "r1"]));
     ok(&call(&f, &["--step", "0", "--run", "r1"]));
-    refused(
+    refused_one_line(
         &call(&[], &["--motion", "1", "--run", "r1"]),
         "outside the plan",
     );
@@ -192,7 +180,7 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
         }
     }
     // A finished store takes no more batch calls.
-    refused(
+    refused_one_line(
         &call(&f, &["--step", "0", "--run", "r1"]),
         "has no batch plan",
     );
@@ -216,7 +204,7 @@ fn a_damaged_step_chunk_stops_the_motion_call_naming_it() {
     ok(&call(&f, &["--step", "1", "--run", "r"]));
     std::fs::write(out.join("coverage/c/1/0/0/0"), b"not gzip").unwrap();
     let before = snapshot(dir.path());
-    refused(
+    refused_one_line(
         &call(&[], &["--motion", "0", "--run", "r"]),
         "coverage/c/1/0/0/0: damaged chunk",
     );
@@ -225,7 +213,7 @@ fn a_damaged_step_chunk_stops_the_motion_call_naming_it() {
         "a refused call wrote something"
     );
     std::fs::remove_file(out.join("zarr.json")).unwrap();
-    refused(
+    refused_one_line(
         &call(&f, &["--step", "0", "--run", "r"]),
         "zarr.json: missing",
     );

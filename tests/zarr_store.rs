@@ -9,7 +9,7 @@ mod common;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use common::{sample, stratus};
+use common::{ok, refused_one_line, sample, stratus};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::zarr::Store;
 
@@ -30,19 +30,6 @@ fn ingest(files: &[&Path], out: &Path, extra: &[&str]) -> std::process::Output {
     args.extend_from_slice(&["--out", out.to_str().unwrap()]);
     args.extend_from_slice(extra);
     stratus(&args)
-}
-
-fn ok(o: &std::process::Output) {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-}
-
-/// Exit 2 with one stderr line holding `needle`.
-fn refused(o: &std::process::Output, needle: &str) {
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(err.contains(needle), "expected {needle:?} in: {err}");
 }
 
 /// Every file under `dir` with its bytes.
@@ -156,7 +143,7 @@ fn append_adds_a_later_step_and_refuses_what_is_not_one() {
 
     let before = snapshot(dir.path());
     // The same step again, an earlier one, another region, another run: refused, untouched.
-    refused(
+    refused_one_line(
         &ingest(&[&f6], &grown, &["--append"]),
         "not after the store's last step",
     );
@@ -168,14 +155,14 @@ fn append_adds_a_later_step_and_refuses_what_is_not_one() {
         grown.to_str().unwrap(),
         "--append",
     ]);
-    refused(&stratus(&args), "a store is one region and size");
+    refused_one_line(&stratus(&args), "a store is one region and size");
     let other_run = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
-    refused(
+    refused_one_line(
         &ingest(&[&other_run], &grown, &["--append"]),
         "a store is one run",
     );
     // Without --append an existing store is never replaced.
-    refused(&ingest(&[&f6], &grown, &[]), "give --append");
+    refused_one_line(&ingest(&[&f6], &grown, &[]), "give --append");
     assert!(
         before == snapshot(dir.path()),
         "a refused write changed files"
@@ -200,7 +187,7 @@ fn racing_appends_are_serialised() {
         "{codes:?}"
     );
     let loser = if a.status.success() { &b } else { &a };
-    refused(loser, "not after the store's last step");
+    refused_one_line(loser, "not after the store's last step");
     let s = Store::open(&store).unwrap();
     assert_eq!(s.steps.len(), 2);
     s.read_step(1).unwrap();
@@ -219,27 +206,27 @@ fn a_damaged_or_incomplete_store_is_one_line_exit_2() {
     let chunk = store.join("coverage/c/0/0/0/1");
     let good = std::fs::read(&chunk).unwrap();
     std::fs::write(&chunk, &good[..good.len() / 2]).unwrap();
-    refused(&probe(), "damaged chunk");
+    refused_one_line(&probe(), "damaged chunk");
     std::fs::write(&chunk, b"not gzip").unwrap();
-    refused(&probe(), "coverage/c/0/0/0/1");
+    refused_one_line(&probe(), "coverage/c/0/0/0/1");
     std::fs::remove_file(&chunk).unwrap();
-    refused(&probe(), "chunk missing");
+    refused_one_line(&probe(), "chunk missing");
     std::fs::write(&chunk, &good).unwrap();
     ok(&probe());
     // Missing metadata: an array's, the group's.
     let meta = store.join("cloud_base/zarr.json");
     std::fs::rename(&meta, dir.path().join("saved.json")).unwrap();
-    refused(&probe(), "cloud_base/zarr.json: missing");
+    refused_one_line(&probe(), "cloud_base/zarr.json: missing");
     std::fs::rename(dir.path().join("saved.json"), &meta).unwrap();
     std::fs::remove_file(store.join("zarr.json")).unwrap();
-    refused(&probe(), "zarr.json: missing");
+    refused_one_line(&probe(), "zarr.json: missing");
     let before = snapshot(dir.path());
-    refused(&ingest(&[&f0], &store, &["--append"]), "missing");
+    refused_one_line(&ingest(&[&f0], &store, &["--append"]), "missing");
     assert!(
         before == snapshot(dir.path()),
         "a refused append changed files"
     );
-    refused(
+    refused_one_line(
         &stratus(&[
             "probe",
             "--map",

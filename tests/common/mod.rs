@@ -16,6 +16,20 @@ pub fn stratus(args: &[&str]) -> Output {
         .expect("run stratus")
 }
 
+/// The command succeeded (its stderr otherwise).
+pub fn ok(o: &Output) {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// Exit 2 with one stderr line holding `needle`, and no panic.
+pub fn refused_one_line(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(needle), "expected {needle:?} in: {err}");
+}
+
 /// A path under `data-samples/` (the real GFS files and the synthetic sample, in the repository).
 pub fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

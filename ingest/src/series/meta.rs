@@ -40,6 +40,17 @@ pub struct SeriesLayer {
     pub levels_hpa: Vec<f64>,
 }
 
+impl From<&crate::meta::LayerMeta> for SeriesLayer {
+    /// A map's layer as the series names it (every step's map has the same layers).
+    fn from(l: &crate::meta::LayerMeta) -> SeriesLayer {
+        SeriesLayer {
+            kind: l.kind,
+            channel: l.channel,
+            levels_hpa: l.levels_hpa.clone(),
+        }
+    }
+}
+
 /// One forecast step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SeriesStep {

@@ -204,15 +204,7 @@ fn series_meta(
         region: m0.region,
         width: m0.width,
         height: m0.height,
-        layers: m0
-            .layers
-            .iter()
-            .map(|l| SeriesLayer {
-                kind: l.kind,
-                channel: l.channel,
-                levels_hpa: l.levels_hpa.clone(),
-            })
-            .collect(),
+        layers: m0.layers.iter().map(SeriesLayer::from).collect(),
         steps,
     };
     meta.validate()

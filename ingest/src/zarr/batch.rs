@@ -411,15 +411,7 @@ fn read_step_record(out: &Path, k: usize) -> Result<StepRecord> {
 /// The series of the plan `p` with the steps `recs` (its layers are the first step's).
 fn series_of(p: &Plan, recs: &[&StepRecord]) -> SeriesMeta {
     let layers = recs.first().map_or_else(Vec::new, |r| {
-        r.meta
-            .layers
-            .iter()
-            .map(|l| SeriesLayer {
-                kind: l.kind,
-                channel: l.channel,
-                levels_hpa: l.levels_hpa.clone(),
-            })
-            .collect()
+        r.meta.layers.iter().map(SeriesLayer::from).collect()
     });
     SeriesMeta {
         format: SERIES_FORMAT.into(),
