@@ -140,6 +140,11 @@ def raw(ds):
     return out
 
 
+#: The store's motion between steps (ingest/src/zarr/motion.rs): not in a Dataset opened
+#: from PNG sets yet.
+MOTION = ["motion_u", "motion_v", "motion_scale"]
+
+
 def test_ingest_equals_the_cli_png_map_value_for_value(one, files):
     png = read_png(files / "map.png")
     assert png.dtype == np.uint16 and png.shape == (SIZE[1], SIZE[0], 4)
@@ -152,7 +157,9 @@ def test_ingest_equals_the_cli_png_map_value_for_value(one, files):
     np.testing.assert_allclose(one.coverage.values[0, 0], png[..., 0] / 65535.0)
     # Every variable (structure and ground too) equals the PNG set the CLI wrote, read back.
     from_png = stratus.open(files / "map.json")
-    for name in one.data_vars:
+    # Less the motion arrays, which opening PNG sets does not lay out yet (docs/python.md).
+    assert set(one.data_vars) - set(from_png.data_vars) == set(MOTION)
+    for name in from_png.data_vars:
         np.testing.assert_array_equal(r[name], raw(from_png)[name], err_msg=name)
 
 
@@ -187,6 +194,7 @@ def test_open_reads_each_kind(one, pair, files):
     provenance = {"history", "stratus_steps", "stratus_series"}
     for path, ds in [(files / "map.json", one), (files / "map.png", one), (files / "pair.json", pair)]:
         got = stratus.open(path)
+        ds = ds.drop_vars(MOTION)
         xr.testing.assert_equal(got, ds)
         for name in ds.variables:
             assert got[name].attrs == ds[name].attrs, name
