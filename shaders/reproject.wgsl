@@ -39,6 +39,40 @@ struct Reproject {
 // Moved by less than this (px) since the last frame, a pixel keeps its history unclamped.
 const STILL_PX: f32 = 0.25;
 
+// Fresh samples around a pixel (the moving view's bilinear footprint, the still view's
+// lattice): their range bounds the history kept (no ghosts) and their edge-aware mean stands in
+// where there is none. Both views gather it with fill_add.
+struct Fill {
+    lo_c: vec4<f32>,
+    hi_c: vec4<f32>,
+    lo_s: vec3<f32>,
+    hi_s: vec3<f32>,
+    up_c: vec4<f32>,    // weighted sums: the mean is up / wsum
+    up_s: vec3<f32>,
+    wsum: f32,
+};
+
+fn fill_empty() -> Fill {
+    return Fill(vec4<f32>(1e30), vec4<f32>(-1e30), vec3<f32>(1e30), vec3<f32>(-1e30),
+        vec4<f32>(0.0), vec3<f32>(0.0), 0.0);
+}
+
+// Adds the sample (cloud c, scene s) at bilinear weight wb, weighed down across a change of
+// distance from the nearest sample's (near_dist, km; 0: sky) and by `edge`, the caller's
+// penalty for a change of opacity (0: none).
+fn fill_add(fill: ptr<function, Fill>, c: vec4<f32>, s: vec4<f32>, wb: f32, near_dist: f32, edge: f32) {
+    (*fill).lo_c = min((*fill).lo_c, c);
+    (*fill).hi_c = max((*fill).hi_c, c);
+    (*fill).lo_s = min((*fill).lo_s, s.rgb);
+    (*fill).hi_s = max((*fill).hi_s, s.rgb);
+    let far = max(max(s.a, near_dist), 1e-3);
+    let dd = select(abs(s.a - near_dist) / far, 1.0, (s.a > 0.0) != (near_dist > 0.0));
+    let w = wb / (1.0 + edge + 8.0 * dd) + 1e-4;
+    (*fill).up_c += w * c;
+    (*fill).up_s += w * s.rgb;
+    (*fill).wsum += w;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = vec2<u32>(f.out_size);
@@ -68,38 +102,20 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let nearest = clamp(vec2<i32>(round(q)), vec2<i32>(0), cells - 1);
     let near_scene = textureLoad(fresh_scene, nearest, 0);
     let near_a = textureLoad(fresh_cloud, nearest, 0).a;
-    // The fresh samples' bilinear footprint: their range bounds the history (no ghosts: where
-    // the march now finds clear air around a pixel, no history keeps cloud there), and their
-    // edge-aware mean stands in where there is no history.
-    var lo_c = vec4<f32>(1e30);
-    var hi_c = vec4<f32>(-1e30);
-    var lo_s = vec3<f32>(1e30);
-    var hi_s = vec3<f32>(-1e30);
-    var up_c = vec4<f32>(0.0);
-    var up_s = vec3<f32>(0.0);
-    var wsum = 0.0;
+    // The fresh samples' bilinear footprint (Fill: where the march now finds clear air around
+    // a pixel, no history keeps cloud there), its mean weighed down across a change of opacity.
+    var fill = fill_empty();
     for (var j = 0; j < 2; j++) {
         for (var i = 0; i < 2; i++) {
             let at = clamp(c0 + vec2<i32>(i, j), vec2<i32>(0), cells - 1);
             let c = textureLoad(fresh_cloud, at, 0);
+            let wb = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1);
             let s = textureLoad(fresh_scene, at, 0);
-            lo_c = min(lo_c, c);
-            hi_c = max(hi_c, c);
-            lo_s = min(lo_s, s.rgb);
-            hi_s = max(hi_s, s.rgb);
-            let far = max(max(s.a, near_scene.a), 1e-3);
-            let dd = select(abs(s.a - near_scene.a) / far, 1.0, (s.a > 0.0) != (near_scene.a > 0.0));
-            let w = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1)
-                / (1.0 + 16.0 * abs(c.a - near_a) + 8.0 * dd) + 1e-4;
-            up_c += w * c;
-            up_s += w * s.rgb;
-            wsum += w;
+            fill_add(&fill, c, s, wb, near_scene.a, 16.0 * abs(c.a - near_a));
         }
     }
-    up_c /= wsum;
-    up_s /= wsum;
-    var out_c = up_c;
-    var out_s = vec4<f32>(up_s, near_scene.a);
+    var out_c = fill.up_c / fill.wsum;
+    var out_s = vec4<f32>(fill.up_s / fill.wsum, near_scene.a);
     if (rp.valid != 0u) {
         // The point this pixel shows, at the distance of the fresh sample nearest to it (sky:
         // a direction, infinitely far), seen from the previous camera.
@@ -146,8 +162,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 if (same_kind && in_region && change <= rp.max_depth_change) {
                     let hc = textureSampleLevel(hist_cloud, lin, uv, 0.0);
                     let hs = textureSampleLevel(hist_scene, lin, uv, 0.0);
-                    out_c = clamp(hc, lo_c, hi_c);
-                    out_s = vec4<f32>(clamp(hs.rgb, lo_s, hi_s), carried);
+                    out_c = clamp(hc, fill.lo_c, fill.hi_c);
+                    out_s = vec4<f32>(clamp(hs.rgb, fill.lo_s, fill.hi_s), carried);
                 }
             }
         }
@@ -223,32 +239,15 @@ fn still_pixel(p: vec2<u32>, size: vec2<u32>, n: u32) {
         }
     }
     let near = px[best];
-    var lo_c = vec4<f32>(1e30);
-    var hi_c = vec4<f32>(-1e30);
-    var lo_s = vec3<f32>(1e30);
-    var hi_s = vec3<f32>(-1e30);
-    var up_c = vec4<f32>(0.0);
-    var up_s = vec3<f32>(0.0);
-    var wsum = 0.0;
+    var fill = fill_empty();
     for (var i = 0; i < 4; i++) {
-        let c = px[i].c;
-        let s = px[i].s;
-        lo_c = min(lo_c, c);
-        hi_c = max(hi_c, c);
-        lo_s = min(lo_s, s.rgb);
-        hi_s = max(hi_s, s.rgb);
-        let far = max(max(s.a, near.s.a), 1e-3);
-        let dd = select(abs(s.a - near.s.a) / far, 1.0, (s.a > 0.0) != (near.s.a > 0.0));
-        // Across a change of distance only: within the cloud the opacity varies at the
-        // lattice's own scale, and weighting by it turns the fill into blocks.
-        let w = wb[i] / (1.0 + 8.0 * dd) + 1e-4;
-        up_c += w * c;
-        up_s += w * s.rgb;
-        wsum += w;
+        // Across a change of distance only (no opacity term): within the cloud the opacity
+        // varies at the lattice's own scale, and weighting by it turns the fill into blocks.
+        fill_add(&fill, px[i].c, px[i].s, wb[i], near.s.a, 0.0);
     }
     if (st * 2u <= n && n >= 8u) {
-        textureStore(out_cloud, p, up_c / wsum);
-        textureStore(out_scene, p, vec4<f32>(up_s / wsum, near.s.a));
+        textureStore(out_cloud, p, fill.up_c / fill.wsum);
+        textureStore(out_scene, p, vec4<f32>(fill.up_s / fill.wsum, near.s.a));
         return;
     }
     let hc = textureLoad(hist_cloud, p, 0);
@@ -259,6 +258,6 @@ fn still_pixel(p: vec2<u32>, size: vec2<u32>, n: u32) {
         textureStore(out_scene, p, hs);
         return;
     }
-    textureStore(out_cloud, p, clamp(hc, lo_c, hi_c));
-    textureStore(out_scene, p, vec4<f32>(clamp(hs.rgb, lo_s, hi_s), hs.a));
+    textureStore(out_cloud, p, clamp(hc, fill.lo_c, fill.hi_c));
+    textureStore(out_scene, p, vec4<f32>(clamp(hs.rgb, fill.lo_s, fill.hi_s), hs.a));
 }
