@@ -5,24 +5,25 @@
 //! - A store is read as it is on disk: every array's `zarr.json` and chunks (checked by the
 //!   ingest crate's own metadata reader, `zarr::array`), after `Store::open` has checked the
 //!   store as the command line does.
-//! - A PNG map or a series is laid out through the store's own variables table
-//!   (`stratus_ingest::zarr::vars`: names, lattices, CF attributes, each plane's samples); the
-//!   coordinates and run attributes follow the writer (`zarr::write`), and
+//! - A PNG map or a series is laid out by the store's own layout (`stratus_ingest::zarr::layout`:
+//!   arrays, dimensions, coordinates' values, CF and group attributes, as the writer lays them
+//!   down) and variables table (`zarr::vars`: each plane's samples);
 //!   tests/python/test_package.py checks that the two agree with a store of the same ingest.
 
 use std::path::Path;
 
 use anyhow::Context;
-use serde_json::{json, Map, Value};
+use serde_json::{Map, Value};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::error::shown;
 use stratus_ingest::input::read_sidecar_text;
-use stratus_ingest::meta::{format_time, CloudMapMeta};
+use stratus_ingest::meta::CloudMapMeta;
 use stratus_ingest::series::{text_is_series, Series, SeriesMeta};
-use stratus_ingest::zarr::array::{decode_chunk, ArrayMeta, Dtype};
+use stratus_ingest::zarr::array::{decode_chunk, le_bytes, ArrayMeta};
+use stratus_ingest::zarr::layout::{self, Lattices};
 use stratus_ingest::zarr::read::MAX_CHUNK_BYTES;
-use stratus_ingest::zarr::vars::{self, planes, Grid, VARS};
-use stratus_ingest::zarr::{self, Store, SERIES_ATTR, STEPS_ATTR, STORE_FORMAT};
+use stratus_ingest::zarr::vars::{self, planes, VARS};
+use stratus_ingest::zarr::{self, Store};
 
 /// One array, whole.
 pub struct Array {
@@ -64,27 +65,6 @@ pub fn open(path: &Path) -> anyhow::Result<Dataset> {
     }
 }
 
-/// The order the writer lays arrays down in (coordinates, then the variables table).
-fn rank(name: &str) -> usize {
-    const COORDS: [&str; 9] = [
-        "time",
-        "forecast_period",
-        "layer",
-        "lat",
-        "lon",
-        "structure_lat",
-        "structure_lon",
-        "ground_lat",
-        "ground_lon",
-    ];
-    let vars = VARS.iter().map(|v| v.name);
-    COORDS
-        .into_iter()
-        .chain(vars)
-        .position(|n| n == name)
-        .unwrap_or(usize::MAX)
-}
-
 fn read_json(path: &Path) -> anyhow::Result<Value> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", shown(path)))?;
@@ -110,6 +90,14 @@ fn read_store(path: &Path) -> anyhow::Result<Dataset> {
             names.push(e.file_name().to_string_lossy().into_owned());
         }
     }
+    // In the order the writer lays them down (`zarr::layout`), then the rest (motion) by name.
+    let order: Vec<String> = store.steps.first().map_or_else(Vec::new, |first| {
+        layout::array_metas(store.series.reference_time, steps, &Lattices::of(first))
+            .into_iter()
+            .map(|(n, _)| n)
+            .collect()
+    });
+    let rank = |n: &str| order.iter().position(|o| o == n).unwrap_or(usize::MAX);
     names.sort_by_key(|n| (rank(n), n.clone()));
     let arrays = names
         .iter()
@@ -214,149 +202,55 @@ fn place(data: &mut [u8], meta: &ArrayMeta, idx: &[u64], values: &[u64]) {
     }
 }
 
-fn array(name: &str, dims: &[&str], dtype: Dtype, shape: Vec<u64>, data: Vec<u8>) -> Array {
-    Array {
-        name: name.to_string(),
-        dims: dims.iter().map(|d| d.to_string()).collect(),
-        dtype: dtype.name(),
-        shape,
-        data,
-        attributes: Map::new(),
-    }
-}
-
-fn f64_bytes(v: impl Iterator<Item = f64>) -> Vec<u8> {
-    v.flat_map(f64::to_le_bytes).collect()
-}
-
-/// The coordinates of the steps `metas`: time, forecast period, layer and every lattice's.
-fn coordinates(metas: &[&CloudMapMeta], units: &str) -> Vec<Array> {
-    let t = metas.len() as u64;
-    let minutes = metas.iter().flat_map(|m| {
-        let reference = m.source.reference_time.unwrap_or_default();
-        let valid = m.source.valid_time.unwrap_or(reference);
-        (valid - reference)
-            .num_seconds()
-            .div_euclid(60)
-            .to_le_bytes()
-    });
-    let hours = f64_bytes(metas.iter().map(|m| m.source.forecast_step_h));
-    let mut v = vec![
-        array("time", &["time"], Dtype::I64, vec![t], minutes.collect()),
-        array("forecast_period", &["time"], Dtype::F64, vec![t], hours),
-        array("layer", &["layer"], Dtype::U8, vec![3], vec![0, 1, 2]),
-    ];
-    for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
-        let Some(g) = grid.of(metas[0]) else { continue };
-        let [lat, lon] = grid.dims();
-        let lats = (0..g.height).map(|j| g.north - j as f64 * g.dlat);
-        let lons = (0..g.width).map(|i| g.west + i as f64 * g.dlon);
-        v.push(array(
-            lat,
-            &[lat],
-            Dtype::F64,
-            vec![g.height as u64],
-            f64_bytes(lats),
-        ));
-        v.push(array(
-            lon,
-            &[lon],
-            Dtype::F64,
-            vec![g.width as u64],
-            f64_bytes(lons),
-        ));
-    }
-    for a in &mut v {
-        a.attributes = vars::coordinate_attributes(&a.name, units);
-    }
-    v
-}
-
-/// The steps `maps` (one map, or a series' steps) laid out as the store lays them out.
+/// The steps `maps` (one map, or a series' steps) laid out as the store lays them out: the
+/// ingest crate's own layout (`zarr::layout`), each variable's planes as the writer takes them.
 fn from_maps(path: &Path, maps: &[CloudMap], series: Option<&SeriesMeta>) -> Dataset {
-    let metas: Vec<&CloudMapMeta> = maps.iter().map(|m| &m.meta).collect();
-    let first = metas[0];
-    let reference = series
-        .map(|s| s.reference_time)
-        .or(first.source.reference_time)
-        .unwrap_or_default();
-    let units = format!("minutes since {}", reference.format("%Y-%m-%d %H:%M:%S"));
-    let mut arrays = coordinates(&metas, &units);
-    for v in &VARS {
-        let Some(g) = v.grid.of(first) else { continue };
-        if v.grid == Grid::Structure && first.extra_images.is_empty() {
-            continue;
-        }
-        let [lat, lon] = v.grid.dims();
-        let mut dims = vec!["time"];
-        let mut shape = vec![maps.len() as u64];
-        if v.layered {
-            dims.push("layer");
-            shape.push(3);
-        }
-        dims.extend([lat, lon]);
-        shape.extend([g.height as u64, g.width as u64]);
-        let plane = g.width as usize * g.height as usize;
-        let mut data = Vec::with_capacity(maps.len() * planes(v) * plane * v.dtype.size());
-        for map in maps {
-            for l in 0..planes(v) {
-                let samples = vars::extract(map, v, l).unwrap_or_else(|| vec![0; plane]);
-                match v.dtype {
-                    Dtype::U8 => data.extend(samples.iter().map(|&s| s as u8)),
-                    _ => data.extend(samples.iter().flat_map(|s| s.to_le_bytes())),
-                }
+    let metas: Vec<CloudMapMeta> = maps.iter().map(|m| m.meta.clone()).collect();
+    let lat = Lattices::of(&metas[0]);
+    let reference = layout::run_reference(series, &metas[0]);
+    let coords = layout::coordinates(&metas, &lat);
+    let arrays = layout::array_metas(reference, maps.len() as u64, &lat)
+        .into_iter()
+        .map(|(name, meta)| {
+            let data = match coords.iter().find(|c| c.name == name) {
+                Some(c) => le_bytes(&c.values, c.dtype),
+                None => variable(maps, &name, &meta),
+            };
+            Array {
+                name,
+                dims: meta.dims,
+                dtype: meta.dtype.name(),
+                shape: meta.shape,
+                data,
+                attributes: meta.attributes,
             }
-        }
-        let mut a = array(v.name, &dims, v.dtype, shape, data);
-        a.attributes = vars::attributes(v);
-        a.attributes
-            .insert("grid_mapping_note".into(), json!("EPSG:4326 pixel centres"));
-        arrays.push(a);
-    }
+        })
+        .collect();
+    // The step sidecars as the files hold them (a store's name its steps `step-fHHH.png`),
+    // the history saying where they were read; a single map has no series.
+    let history = format!(
+        "read from {} by the stratus Python package {}",
+        shown(path),
+        env!("CARGO_PKG_VERSION")
+    );
     Dataset {
-        attributes: run_attributes(path, &metas, series, reference),
+        attributes: layout::group_attributes(series, &metas, history),
         arrays,
     }
 }
 
-/// The group attributes the writer gives a store of these steps; the step sidecars as the
-/// files hold them (a store's name its steps `step-fHHH.png`), the history saying where they
-/// were read, and a single map has no series.
-fn run_attributes(
-    path: &Path,
-    metas: &[&CloudMapMeta],
-    series: Option<&SeriesMeta>,
-    reference: chrono::DateTime<chrono::Utc>,
-) -> Map<String, Value> {
-    let first = metas[0];
-    let rh_cr: Map<String, Value> = first
-        .layers
-        .iter()
-        .map(|l| (l.kind.name().to_string(), json!(l.rh_cr)))
-        .collect();
-    let files: Vec<&str> = metas.iter().map(|m| m.source.file.as_str()).collect();
-    let region = series.map_or_else(|| json!(first.region), |s| json!(s.region));
-    let mut a = json!({
-        "Conventions": "CF-1.10",
-        "title": "Stratus CloudMap: cloud cover per layer, cloud structure and ground",
-        "institution": "stratus-ingest",
-        "source": "NCEP GFS GRIB2 relative humidity (critical-humidity formula)",
-        "history": format!(
-            "read from {} by the stratus Python package {}",
-            shown(path),
-            env!("CARGO_PKG_VERSION")
-        ),
-        "stratus_format": STORE_FORMAT,
-        "format_version": 1,
-        "reference_time": format_time(&reference),
-        "rh_cr": rh_cr,
-        "source_files": files,
-        "region": region,
-        "interpolation": first.interpolation,
-        STEPS_ATTR: metas,
-    });
-    if let (Some(s), Some(o)) = (series, a.as_object_mut()) {
-        o.insert(SERIES_ATTR.into(), json!(s));
+/// The variable `name` (laid out as `meta`) of every step of `maps`, as its bytes.
+fn variable(maps: &[CloudMap], name: &str, meta: &ArrayMeta) -> Vec<u8> {
+    let Some(v) = VARS.iter().find(|v| v.name == name) else {
+        return Vec::new();
+    };
+    let plane: u64 = meta.shape.iter().rev().take(2).product();
+    let mut samples = Vec::with_capacity(maps.len() * planes(v) * plane as usize);
+    for map in maps {
+        for l in 0..planes(v) {
+            let s = vars::extract(map, v, l).unwrap_or_else(|| vec![0; plane as usize]);
+            samples.extend(s.into_iter().map(u64::from));
+        }
     }
-    a.as_object().cloned().unwrap_or_default()
+    le_bytes(&samples, meta.dtype)
 }

@@ -148,9 +148,8 @@ impl ArrayMeta {
     }
 }
 
-/// A chunk's elements (already padded to the chunk's full size) as its stored bytes:
-/// little-endian, gzip.
-pub fn encode_chunk(values: &[u64], dtype: Dtype) -> Vec<u8> {
+/// Elements (each held in a u64; float64 as its bits) as `dtype`'s little-endian bytes.
+pub fn le_bytes(values: &[u64], dtype: Dtype) -> Vec<u8> {
     let mut raw = Vec::with_capacity(values.len() * dtype.size());
     for &v in values {
         match dtype {
@@ -159,6 +158,13 @@ pub fn encode_chunk(values: &[u64], dtype: Dtype) -> Vec<u8> {
             Dtype::I64 | Dtype::F64 => raw.extend_from_slice(&v.to_le_bytes()),
         }
     }
+    raw
+}
+
+/// A chunk's elements (already padded to the chunk's full size) as its stored bytes:
+/// little-endian, gzip.
+pub fn encode_chunk(values: &[u64], dtype: Dtype) -> Vec<u8> {
+    let raw = le_bytes(values, dtype);
     let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(GZIP_LEVEL));
     // Writing to a Vec cannot fail.
     let _ = gz.write_all(&raw);

@@ -37,11 +37,12 @@ use crate::series::inputs::{InputFile, StepSource};
 use crate::series::meta::{show_hour, SeriesLayer, StepMotion};
 use crate::series::{stored, SeriesMeta, SeriesStep, SERIES_FORMAT};
 
+use super::layout::{array_metas, step_time, Lattices};
 use super::motion::{entry, write_interval};
 use super::read::read_json;
 use super::write::{
-    array_metas, ingest_steps, lattice_fault, put_atomic, put_staged, write_metadata,
-    write_static_coords, write_step, write_time, Lattices, Written,
+    ingest_steps, lattice_fault, put_atomic, put_staged, write_metadata, write_static_coords,
+    write_step, write_time, Written,
 };
 use super::{fault, Store, STORE_FORMAT};
 
@@ -223,7 +224,8 @@ fn write_skeleton(staged: &Path, plan: &Plan, steps: &[StepSource]) -> Result<()
     write_static_coords(staged, &lat, &put_staged)?;
     for (k, &h) in plan.hours.iter().enumerate() {
         let valid = crate::grib::info::after_step(plan.reference_time, h);
-        write_time(staged, k, (plan.reference_time, valid), h, &put_staged)?;
+        let values = step_time((plan.reference_time, valid), h);
+        write_time(staged, k, values, &put_staged)?;
     }
     let files: Vec<String> = steps.iter().map(|s| shown(&s.path).to_string()).collect();
     let group = json!({

@@ -6,6 +6,9 @@
 //!   (hand-written, not the `zarrs` crate: docs/zarr.md says why);
 //! - [`vars`]: the variables — names, dimensions, CF attributes, and each plane taken from a
 //!   CloudMap and put back (the PNG map's samples, so the two agree value for value);
+//! - [`layout`]: which arrays a store holds (dimensions, shapes, chunks, CF attributes), its
+//!   coordinates' values and the group's attributes, defined once for the writer and the
+//!   Python package;
 //! - [`read`]: [`Store::open`], a step's map whole or only the chunks around one point;
 //! - [`write`]: a new store (staged, then renamed into place) and `--append` (under a lock:
 //!   new chunks first, metadata last);
@@ -20,6 +23,7 @@
 
 pub mod array;
 pub mod batch;
+pub mod layout;
 pub mod motion;
 pub mod read;
 pub mod vars;

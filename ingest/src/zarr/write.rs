@@ -13,7 +13,6 @@
 
 use std::path::{Path, PathBuf};
 
-use chrono::{DateTime, Utc};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
@@ -29,10 +28,14 @@ use crate::series::stored::{self, MotionSamples};
 use crate::series::write::write_series;
 use crate::series::{meta::show_hour, Series, SeriesMeta, SeriesStep};
 
-use super::array::{encode_chunk, ArrayMeta, Dtype};
+use super::array::{encode_chunk, ArrayMeta};
+use super::layout::{
+    array_metas, group_attributes, lattices, meta_time, static_coordinates, Lattices,
+    TIME_COORDINATES,
+};
 use super::motion::{entry, write_interval, MOTION_U};
-use super::vars::{self, planes, Grid, VARS};
-use super::{fault, Store, CHUNK_SIDE, SERIES_ATTR, STEPS_ATTR, STORE_FORMAT};
+use super::vars::{self, planes, VARS};
+use super::{fault, Store, CHUNK_SIDE};
 
 /// What a write did.
 #[derive(Debug, Clone)]
@@ -228,14 +231,6 @@ fn append_fault(store: &Store, new: &Series) -> Option<String> {
     })
 }
 
-/// A step's structure and ground lattices (`None`: it has none): one per store.
-pub(crate) fn lattices(m: &CloudMapMeta) -> (Option<StructureGrid>, Option<StructureGrid>) {
-    (
-        m.structure_grid.filter(|_| !m.extra_images.is_empty()),
-        m.ground.as_ref().map(|g| g.grid),
-    )
-}
-
 /// The first of `series`' steps whose lattices are not the first step's, as a fault.
 pub(crate) fn lattice_fault(series: &Series) -> Option<String> {
     let first = lattices(series.step_metas.first()?);
@@ -291,54 +286,26 @@ pub(crate) fn write_step(store: &Path, t: usize, map: &CloudMap, put: Put) -> Re
             })?;
         }
     }
-    let m = &map.meta;
-    let reference = m.source.reference_time.unwrap_or_default();
-    let valid = m.source.valid_time.unwrap_or(reference);
-    write_time(store, t, (reference, valid), m.source.forecast_step_h, put)
+    write_time(store, t, meta_time(&map.meta), put)
 }
 
-/// Time index `t`'s coordinates: `time` (minutes after the run) and `forecast_period` (h).
-pub(crate) fn write_time(
-    store: &Path,
-    t: usize,
-    (reference, valid): (DateTime<Utc>, DateTime<Utc>),
-    hours: f64,
-    put: Put,
-) -> Result<()> {
-    let minutes = (valid - reference).num_seconds().div_euclid(60);
-    let idx = [t as u64];
-    put(
-        &ArrayMeta::chunk_path(&store.join("time"), &idx),
-        &encode_chunk(&[minutes as u64], Dtype::I64),
-    )?;
-    put(
-        &ArrayMeta::chunk_path(&store.join("forecast_period"), &idx),
-        &encode_chunk(&[hours.to_bits()], Dtype::F64),
-    )
-}
-
-/// The coordinates that do not grow: layer and each lattice's latitudes and longitudes.
-pub(crate) fn write_static_coords(store: &Path, lat: &Lattices, put: Put) -> Result<()> {
-    put(
-        &ArrayMeta::chunk_path(&store.join("layer"), &[0]),
-        &encode_chunk(&[0, 1, 2], Dtype::U8),
-    )?;
-    for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
-        let Some(g) = lat.get(grid) else { continue };
-        let [lat, lon] = grid.dims();
-        let lats: Vec<u64> = (0..g.height)
-            .map(|j| (g.north - j as f64 * g.dlat).to_bits())
-            .collect();
-        let lons: Vec<u64> = (0..g.width)
-            .map(|i| (g.west + i as f64 * g.dlon).to_bits())
-            .collect();
+/// Time index `t`'s coordinates, `values` ([`super::layout::step_time`]).
+pub(crate) fn write_time(store: &Path, t: usize, values: [u64; 2], put: Put) -> Result<()> {
+    for ((name, dtype), v) in TIME_COORDINATES.into_iter().zip(values) {
         put(
-            &ArrayMeta::chunk_path(&store.join(lat), &[0]),
-            &encode_chunk(&lats, Dtype::F64),
+            &ArrayMeta::chunk_path(&store.join(name), &[t as u64]),
+            &encode_chunk(&[v], dtype),
         )?;
+    }
+    Ok(())
+}
+
+/// The coordinates that do not grow ([`static_coordinates`]), each one chunk.
+pub(crate) fn write_static_coords(store: &Path, lat: &Lattices, put: Put) -> Result<()> {
+    for c in static_coordinates(lat) {
         put(
-            &ArrayMeta::chunk_path(&store.join(lon), &[0]),
-            &encode_chunk(&lons, Dtype::F64),
+            &ArrayMeta::chunk_path(&store.join(c.name), &[0]),
+            &encode_chunk(&c.values, c.dtype),
         )?;
     }
     Ok(())
@@ -402,128 +369,13 @@ pub(crate) fn write_metadata(
     )
 }
 
-/// The lattices of a store: the map's pixels, and the structure and ground lattices when
-/// its steps have them (one of each per store).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Lattices {
-    pub map: StructureGrid,
-    pub structure: Option<StructureGrid>,
-    pub ground: Option<StructureGrid>,
-}
-
-impl Lattices {
-    pub fn of(m: &CloudMapMeta) -> Lattices {
-        let (structure, ground) = lattices(m);
-        Lattices {
-            map: StructureGrid::of_map(&m.region, m.width, m.height),
-            structure,
-            ground,
-        }
-    }
-
-    pub fn get(&self, g: Grid) -> Option<StructureGrid> {
-        match g {
-            Grid::Map => Some(self.map),
-            Grid::Structure => self.structure,
-            Grid::Ground => self.ground,
-        }
-    }
-}
-
-/// The arrays of a store of `t` steps of the run `reference` on `lat` (data variables on the
-/// lattices it has, and coordinates).
-pub(crate) fn array_metas(
-    reference: DateTime<Utc>,
-    t: u64,
-    lat: &Lattices,
-) -> Vec<(String, ArrayMeta)> {
-    let units = format!("minutes since {}", reference.format("%Y-%m-%d %H:%M:%S"));
-    let coord = |name: &str, n: u64, chunk: u64, dtype: Dtype| {
-        let a = ArrayMeta {
-            shape: vec![n],
-            chunks: vec![chunk],
-            dtype,
-            dims: vec![if name == "forecast_period" {
-                "time"
-            } else {
-                name
-            }
-            .to_string()],
-            attributes: vars::coordinate_attributes(name, &units),
-        };
-        (name.to_string(), a)
-    };
-    let mut v = vec![
-        coord("time", t, 1, Dtype::I64),
-        coord("forecast_period", t, 1, Dtype::F64),
-        coord("layer", 3, 3, Dtype::U8),
-    ];
-    for grid in [Grid::Map, Grid::Structure, Grid::Ground] {
-        if let Some(g) = lat.get(grid) {
-            let [y, x] = grid.dims();
-            v.push(coord(y, g.height as u64, g.height as u64, Dtype::F64));
-            v.push(coord(x, g.width as u64, g.width as u64, Dtype::F64));
-        }
-    }
-    for var in &VARS {
-        let Some(g) = lat.get(var.grid) else {
-            continue;
-        };
-        let [y, x] = var.grid.dims();
-        let (mut shape, mut chunks, mut dims) = (vec![t], vec![1], vec!["time"]);
-        if var.layered {
-            shape.push(3);
-            chunks.push(1);
-            dims.push("layer");
-        }
-        shape.extend([g.height as u64, g.width as u64]);
-        chunks.extend([CHUNK_SIDE, CHUNK_SIDE]);
-        dims.extend([y, x]);
-        let mut attributes = vars::attributes(var);
-        attributes.insert("grid_mapping_note".into(), json!("EPSG:4326 pixel centres"));
-        v.push((
-            var.name.to_string(),
-            ArrayMeta {
-                shape,
-                chunks,
-                dtype: var.dtype,
-                dims: dims.into_iter().map(String::from).collect(),
-                attributes,
-            },
-        ));
-    }
-    v
-}
-
-/// The group's `zarr.json`: CF run attributes, and the sidecars this reader rebuilds maps from.
-pub(crate) fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
-    // Each step's motion entry names the store's motion arrays (`super::motion`), or is
-    // absent (a store from before them: the reader estimates the motion).
-    let rh_cr: serde_json::Map<String, Value> = metas[0]
-        .layers
-        .iter()
-        .map(|l| (l.kind.name().to_string(), json!(l.rh_cr)))
-        .collect();
-    let files: Vec<&str> = metas.iter().map(|m| m.source.file.as_str()).collect();
+/// The group's `zarr.json`: the layout's attributes ([`group_attributes`]), written here.
+fn group_json(series: &SeriesMeta, metas: &[CloudMapMeta]) -> Value {
+    let history = format!("written by stratus-ingest {}", env!("CARGO_PKG_VERSION"));
     json!({
         "zarr_format": 3,
         "node_type": "group",
-        "attributes": {
-            "Conventions": "CF-1.10",
-            "title": "Stratus CloudMap: cloud cover per layer, cloud structure and ground",
-            "institution": "stratus-ingest",
-            "source": "NCEP GFS GRIB2 relative humidity (critical-humidity formula)",
-            "history": format!("written by stratus-ingest {}", env!("CARGO_PKG_VERSION")),
-            "stratus_format": STORE_FORMAT,
-            "format_version": 1,
-            "reference_time": format_time(&series.reference_time),
-            "rh_cr": rh_cr,
-            "source_files": files,
-            "region": series.region,
-            "interpolation": metas[0].interpolation,
-            SERIES_ATTR: series,
-            STEPS_ATTR: metas,
-        }
+        "attributes": group_attributes(Some(series), metas, history),
     })
 }
 
