@@ -6,13 +6,14 @@
 //! - `ingest`: `stratus ingest … --out STORE.zarr` into a store the caller names (the Zarr
 //!   writer, `stratus_ingest::zarr::write::create`), read back by [`dataset`];
 //! - `open`: a store, a PNG map or a series sidecar as plain arrays ([`dataset`]);
-//! - `render`: `stratus render` itself (`src/cmd/render.rs`) into a temporary PNG, decoded;
+//! - `render`: `stratus render` itself (`src/cmd/render.rs`, `frame`): the pixels it would
+//!   write to PNG, handed back directly;
 //! - `score`: `stratus score`'s report (`src/cmd/score.rs`) as JSON.
 //!
 //! Errors are one line, the text `stratus` prints after `error: `; a file that cannot be read
 //! or written raises `OSError`, anything else `ValueError` ([`to_py`]).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Parser;
 use pyo3::exceptions::{PyOSError, PyValueError};
@@ -131,23 +132,18 @@ fn open(py: Python<'_>, path: PathBuf) -> PyResult<Arrays<'_>> {
 }
 
 /// `stratus render [flags]` (without `--out`): the picture as (RGBA bytes, width, height),
-/// decoded from the PNG the command wrote into a temporary folder.
+/// the frame the command would write to PNG, handed back by the renderer (no file).
 #[pyfunction]
 fn render(py: Python<'_>, argv: Vec<String>) -> PyResult<(Bound<'_, PyBytes>, u32, u32)> {
-    let dir = tempfile::tempdir().map_err(|e| PyOSError::new_err(e.to_string()))?;
-    let out = dir.path().join("frame.png");
-    let mut argv = argv;
-    argv.extend(["--out".to_string(), out.display().to_string()]);
-    let a: cmd::render::Args = parse("render", argv)?;
-    let img = py.detach(|| render_png(a, &out)).map_err(to_py)?;
+    let a: cmd::render::FrameArgs = parse("render", argv)?;
+    let img = py
+        .detach(|| {
+            let scene = stratus::scene::Scene::open(&a.map);
+            cmd::render::frame(&a, scene, |_| Ok(()))
+        })
+        .map_err(to_py)?;
     let (w, h) = img.dimensions();
     Ok((PyBytes::new(py, img.as_raw()), w, h))
-}
-
-fn render_png(a: cmd::render::Args, out: &Path) -> anyhow::Result<image::RgbaImage> {
-    cmd::render::run(a)?;
-    let img = image::open(out).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
-    Ok(img.to_rgba8())
 }
 
 /// `stratus score [flags] --json`: the report as its JSON text.

@@ -208,8 +208,9 @@ def render(
     """Render one frame of a CloudMap, series or store, headless.
 
     Runs ``stratus render --map MAP --camera LAT,LON,ALT_M --heading … --pitch … --size WxH
-    --preset … [--time …]`` and returns its PNG's pixels: a ``uint8`` array of shape
-    (height, width, 4), RGBA, equal pixel for pixel to the file the command writes.
+    --preset … [--time …]`` without ``--out`` and returns the frame's pixels, read back from
+    the renderer (no file is written): a ``uint8`` array of shape (height, width, 4), RGBA,
+    equal pixel for pixel to the PNG the command writes.
 
     Args:
         map: the ``--map`` (a map's sidecar, a series sidecar or a store).

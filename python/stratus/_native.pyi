@@ -14,7 +14,7 @@ def open(path: str) -> Arrays:
     """A Zarr store, a map's sidecar or a series sidecar as arrays."""
 
 def render(argv: List[str]) -> Tuple[bytes, int, int]:
-    """``stratus render ARGV…``: (RGBA bytes, width, height)."""
+    """``stratus render ARGV…`` without ``--out``: the frame as (RGBA bytes, width, height), no file."""
 
 def score(argv: List[str]) -> str:
     """``stratus score ARGV…``: the report as JSON text."""

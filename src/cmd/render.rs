@@ -1,4 +1,5 @@
-//! `stratus render`: one frame of a CloudMap to PNG, headless.
+//! `stratus render`: one frame of a CloudMap to PNG, headless ([`frame`]: the picture itself,
+//! which the Python package's `render` returns).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -14,6 +15,17 @@ use super::options::{parse_camera, LookOpts};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
+    #[command(flatten)]
+    pub frame: FrameArgs,
+    /// Output PNG.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Every flag of `stratus render` but `--out`: what makes the frame ([`frame`]; the Python
+/// package's `render` takes these and gets the pixels).
+#[derive(clap::Args, Debug)]
+pub struct FrameArgs {
     /// CloudMap sidecar (MAP.json), series sidecar or Zarr store (STORE.zarr) written by
     /// `stratus ingest`.
     #[arg(long)]
@@ -40,9 +52,6 @@ pub struct Args {
     pub size: String,
     #[command(flatten)]
     pub look: LookOpts,
-    /// Output PNG.
-    #[arg(long)]
-    pub out: PathBuf,
     /// Print GPU time per pass (timestamp queries where the adapter has them) and work counters.
     #[arg(long)]
     pub timings: bool,
@@ -68,8 +77,19 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let scene = Scene::open(&a.map);
+    let scene = Scene::open(&a.frame.map);
     check_out(&a.out, &scene.files())?;
+    frame(&a.frame, scene, |img| Ok(save_png(&a.out, img)?))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The frame `a` asks for, rendered from `scene` and read back: the RGBA8 picture `stratus
+/// render` writes to PNG. `done` takes it before --timings prints (the command saves it there).
+pub fn frame(
+    a: &FrameArgs,
+    scene: Scene,
+    done: impl FnOnce(&image::RgbaImage) -> anyhow::Result<()>,
+) -> anyhow::Result<image::RgbaImage> {
     // A series is blended on the GPU (the two steps around --time), as `flight` does.
     let (map, mut timeline) = scene.for_renderer(a.look.moment()?)?;
     let mut settings = a.look.settings(&map, &a.map)?;
@@ -96,7 +116,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         settings.streak_wind = Some(tl.streak_wind());
     }
     if a.render_scale < 1.0 {
-        return scaled(&a, &mut r, &view, (w, h), &settings);
+        return scaled(a, &mut r, &view, (w, h), &settings, done);
     }
     let mut out = r.render(&view, w, h, &settings)?;
     if a.repeat > 1 {
@@ -107,7 +127,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         runs.sort_by(|x, y| x.timings.wall_ms.total_cmp(&y.timings.wall_ms));
         out = runs.swap_remove(runs.len() / 2);
     }
-    save_png(&a.out, &out.to_image())?;
+    let img = out.to_image();
+    done(&img)?;
     if a.timings {
         print_timings(&out)?;
         if let Some(tl) = &timeline {
@@ -118,17 +139,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             )?;
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(img)
 }
 
 /// `--render-scale` below 1: each frame made as the window makes it (`scaled::plan`).
 fn scaled(
-    a: &Args,
+    a: &FrameArgs,
     r: &mut Renderer,
     view: &View,
     size: (u32, u32),
     settings: &stratus::render::Settings,
-) -> anyhow::Result<ExitCode> {
+    done: impl FnOnce(&image::RgbaImage) -> anyhow::Result<()>,
+) -> anyhow::Result<image::RgbaImage> {
     // --super-resolution: marched at --size in cells of the preset's side over the scale, as
     // the window does with it; else marched small and enlarged.
     let (march, settings) = if a.super_resolution {
@@ -155,7 +177,7 @@ fn scaled(
     };
     // With --reprojection on the last frame is the one the history has built up.
     let (img, _) = runs.pop().ok_or_else(|| anyhow::anyhow!("no frame"))?;
-    save_png(&a.out, &img)?;
+    done(&img)?;
     if a.timings {
         let how = if march == size {
             format!(
@@ -172,7 +194,7 @@ fn scaled(
         };
         out!("wall {ms:.1} ms (median of {}; {how})", a.repeat)?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(img)
 }
 
 /// GPU times are absent where the adapter has no (trustworthy) timestamps: CPU drivers.
