@@ -3,52 +3,27 @@
 //! a teleport or a new map starts the history afresh. Two renderers: one reprojects, one
 //! marches every pixel with the same settings and jitter.
 
-use chrono::{DateTime, Utc};
-use stratus::render::camera::Camera;
-use stratus::render::{Gpu, Output, Preset, Renderer, Reprojection, Settings, View};
-use stratus_ingest::cloudmap::CloudMap;
-use stratus_ingest::meta::LayerKind;
-use stratus_ingest::region::Region;
+mod common;
 
-fn noon() -> DateTime<Utc> {
-    DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc)
-}
+use common::deck::{fast_settings, gpu, middle_deck};
+use stratus::render::camera::Camera;
+use stratus::render::{Output, Renderer, Reprojection, View};
+use stratus_ingest::cloudmap::CloudMap;
 
 /// A middle deck 3–5 km west of 2°E, clear air east of it: one sharp edge.
 fn edge_map() -> CloudMap {
-    CloudMap::from_fn(
-        Region {
-            south: 0.0,
-            north: 2.0,
-            west: 0.0,
-            east: 4.0,
-        },
-        256,
-        128,
-        &[(LayerKind::Middle, 3000.0, 5000.0)],
-        noon(),
-        |_, lo| [0.0, if lo < 2.0 { 1.0 } else { 0.0 }, 0.0],
-    )
+    middle_deck(|_, lo| if lo < 2.0 { 1.0 } else { 0.0 })
 }
 
 fn renderers(map: &CloudMap) -> (Renderer, Renderer) {
-    let gpu = || Gpu::new(None).expect("a wgpu adapter (install mesa-vulkan-drivers)");
     (Renderer::new(gpu(), map), Renderer::new(gpu(), map))
-}
-
-fn settings() -> Settings {
-    let mut s = Settings::new(Preset::Fast, noon());
-    s.exposure_auto = false;
-    s
 }
 
 const SIZE: (u32, u32) = (160, 96);
 
 /// The frame reprojected by `a` and marched whole by `b` at one camera.
 fn pair(a: &mut Renderer, b: &mut Renderer, cam: Camera, frame: u32) -> (Output, Output) {
-    let mut s = settings();
+    let mut s = fast_settings();
     s.frame_index = frame;
     s.reprojection = Reprojection::On { full_reset: false };
     let view = View::Perspective(cam);

@@ -10,46 +10,25 @@
 //! `STRATUS_TSR_TIME`) runs the ignored `figures` on a real map and prints the table of
 //! docs/footprint.md; `STRATUS_TSR_PICTURES=DIR` saves its pictures.
 
+mod common;
+
 use std::path::PathBuf;
 
 use chrono::{DateTime, Utc};
+use common::deck::{fast_settings, gpu, middle_deck};
 use stratus::render::camera::Camera;
-use stratus::render::{Gpu, Preset, Renderer, Reprojection, Settings, View};
+use stratus::render::{Renderer, Reprojection, Settings, View};
 use stratus::scaled;
 use stratus_ingest::cloudmap::CloudMap;
-use stratus_ingest::meta::LayerKind;
-use stratus_ingest::region::Region;
 
 const SIZE: (u32, u32) = (320, 180);
 /// The pilot's default airspeed (app::pilot) at the CPU default's 18 frames a second (m).
 const PILOT_STEP_M: f64 = 120.0 / 18.0;
 
-fn noon() -> DateTime<Utc> {
-    DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc)
-}
-
 /// A broken middle deck 3–5 km whose coverage rises to the north-east: cloud edges and gaps
 /// at every distance.
 fn deck() -> CloudMap {
-    CloudMap::from_fn(
-        Region {
-            south: 0.0,
-            north: 2.0,
-            west: 0.0,
-            east: 4.0,
-        },
-        256,
-        128,
-        &[(LayerKind::Middle, 3000.0, 5000.0)],
-        noon(),
-        |la, lo| [0.0, (0.35 + 0.15 * la + 0.05 * lo).clamp(0.0, 1.0), 0.0],
-    )
-}
-
-fn gpu() -> Gpu {
-    Gpu::new(None).expect("a wgpu adapter (install mesa-vulkan-drivers)")
+    middle_deck(|la, lo| (0.35 + 0.15 * la + 0.05 * lo).clamp(0.0, 1.0))
 }
 
 /// A picture in linear RGB (the tone-mapped sRGB output decoded).
@@ -134,12 +113,6 @@ impl Frames {
     }
 }
 
-fn base_settings() -> Settings {
-    let mut s = Settings::new(Preset::Fast, noon());
-    s.exposure_auto = false;
-    s
-}
-
 /// Where the camera stands and looks (degrees, m).
 #[derive(Clone, Copy)]
 struct Pose {
@@ -217,7 +190,7 @@ fn still_errors(
 /// passing the old window's picture on the way.
 #[test]
 fn a_still_window_converges_to_the_full_march() {
-    let (map, base) = (deck(), base_settings());
+    let (map, base) = (deck(), fast_settings());
     let at = (&map, &base);
     let cam = deck_view();
     let four = still_errors(at, cam, Path::Window(1.0), &[1, 16], None);
@@ -297,7 +270,7 @@ fn mean(v: &[f64]) -> f64 {
 /// than the old ¼ window.
 #[test]
 fn flying_at_the_pilots_speed_keeps_no_black_or_stale_pixels() {
-    let (map, base) = (deck(), base_settings());
+    let (map, base) = (deck(), fast_settings());
     let at = (&map, &base);
     let motion = (24, 0.2);
     let now = fly(at, deck_view(), Path::Window(0.25), motion, None);
@@ -345,7 +318,7 @@ fn figures() {
         heading: v[3],
         pitch: v[4],
     };
-    let mut base = base_settings();
+    let mut base = fast_settings();
     base.time = std::env::var("STRATUS_TSR_TIME")
         .ok()
         .and_then(|t| DateTime::parse_from_rfc3339(&t).ok())

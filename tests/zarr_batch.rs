@@ -7,51 +7,14 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use common::{ok, refused_one_line, sample, stratus};
+use common::{ingest, ingest_out, na_pair, ok, refused_one_line, snapshot, stratus};
 use stratus_ingest::series::Series;
 use stratus_ingest::zarr::Store;
 
 const NA: [&str; 4] = ["--region", "30,65,-60,10", "--size", "260x140"];
-
-fn files() -> Vec<String> {
-    ["f000", "f006"]
-        .iter()
-        .map(|f| {
-            sample(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{f}"))
-                .to_string_lossy()
-                .into_owned()
-        })
-        .collect()
-}
-
-/// `ingest FILES… ARGS…`: its output.
-fn ingest(files: &[String], args: &[&str]) -> std::process::Output {
-    let mut a = vec!["ingest"];
-    a.extend(files.iter().map(String::as_str));
-    a.extend_from_slice(args);
-    stratus(&a)
-}
-
-/// Every file under `dir` (relative path) with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut m = BTreeMap::new();
-    let mut todo = vec![dir.to_path_buf()];
-    while let Some(d) = todo.pop() {
-        for e in std::fs::read_dir(&d).unwrap().flatten() {
-            if e.file_type().unwrap().is_dir() {
-                todo.push(e.path());
-            } else {
-                let rel = e.path().strip_prefix(dir).unwrap().to_path_buf();
-                m.insert(rel, std::fs::read(e.path()).unwrap());
-            }
-        }
-    }
-    m
-}
 
 /// Interval 0's motion of `s`, guarded, per layer.
 fn motion_of(s: &Series) -> Vec<(Vec<f32>, Vec<f32>)> {
@@ -63,11 +26,9 @@ fn motion_of(s: &Series) -> Vec<(Vec<f32>, Vec<f32>)> {
 #[test]
 fn a_store_carries_the_png_series_motion_exactly() {
     let dir = tempfile::tempdir().unwrap();
-    let f = files();
+    let f = na_pair();
     let png = dir.path().join("na.png");
-    let mut args = NA.to_vec();
-    args.extend(["--out", png.to_str().unwrap()]);
-    ok(&ingest(&f, &args));
+    ok(&ingest_out(&f, &NA, &png, &[]));
     let series = Series::load(&png.with_extension("json")).unwrap();
     assert!(
         series.meta.steps[0].motion.is_some(),
@@ -77,14 +38,9 @@ fn a_store_carries_the_png_series_motion_exactly() {
 
     let whole = dir.path().join("whole.zarr");
     let appended = dir.path().join("appended.zarr");
-    let mut args = NA.to_vec();
-    args.extend(["--out", whole.to_str().unwrap()]);
-    ok(&ingest(&f, &args));
-    let mut args = NA.to_vec();
-    args.extend(["--out", appended.to_str().unwrap()]);
-    ok(&ingest(&f[..1], &args));
-    args.push("--append");
-    ok(&ingest(&f[1..], &args));
+    ok(&ingest_out(&f, &NA, &whole, &[]));
+    ok(&ingest_out(&f[..1], &NA, &appended, &[]));
+    ok(&ingest_out(&f[1..], &NA, &appended, &["--append"]));
     for store in [&whole, &appended] {
         let s = Arc::new(Store::open(store).unwrap());
         let entry = s.series.steps[0].motion.clone().expect("a motion entry");
@@ -112,20 +68,13 @@ fn a_store_carries_the_png_series_motion_exactly() {
 #[test]
 fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
     let dir = tempfile::tempdir().unwrap();
-    let f = files();
+    let f = na_pair();
     let serial = dir.path().join("serial.zarr");
     let out = dir.path().join("b.zarr");
     let o = out.to_str().unwrap();
-    let mut args = NA.to_vec();
-    args.extend(["--out", serial.to_str().unwrap()]);
-    ok(&ingest(&f, &args));
+    ok(&ingest_out(&f, &NA, &serial, &[]));
 
-    let call = |files: &[String], extra: &[&str]| {
-        let mut a = NA.to_vec();
-        a.extend(["--out", o]);
-        a.extend_from_slice(extra);
-        ingest(files, &a)
-    };
+    let call = |files: &[PathBuf], extra: &[&str]| ingest_out(files, &NA, &out, extra);
     ok(&call(&f, &["--plan", "--run", "r1"]));
     // A second run on the store is refused at its run folder; the store is unchanged.
     let planned = snapshot(&out);
@@ -190,15 +139,9 @@ fn batch_calls_write_the_serial_store_and_refuse_what_is_not_the_plan() {
 #[test]
 fn a_damaged_step_chunk_stops_the_motion_call_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let f = files();
+    let f = na_pair();
     let out = dir.path().join("b.zarr");
-    let o = out.to_str().unwrap();
-    let call = |files: &[String], extra: &[&str]| {
-        let mut a = NA.to_vec();
-        a.extend(["--out", o]);
-        a.extend_from_slice(extra);
-        ingest(files, &a)
-    };
+    let call = |files: &[PathBuf], extra: &[&str]| ingest_out(files, &NA, &out, extra);
     ok(&call(&f, &["--plan", "--run", "r"]));
     ok(&call(&f, &["--step", "0", "--run", "r"]));
     ok(&call(&f, &["--step", "1", "--run", "r"]));

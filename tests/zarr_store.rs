@@ -6,46 +6,17 @@
 
 mod common;
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::{ok, refused_one_line, sample, stratus};
+use common::{ingest_out, na_pair, ok, refused_one_line, sample, snapshot, stratus};
 use stratus_ingest::cloudmap::CloudMap;
 use stratus_ingest::zarr::Store;
 
 const NA: [&str; 4] = ["--region", "30,65,-60,10", "--size", "1300x700"];
 
-fn steps() -> [PathBuf; 2] {
-    [
-        sample("gfs-series/gfs.t18z.pgrb2.2p50.f000"),
-        sample("gfs-series/gfs.t18z.pgrb2.2p50.f006"),
-    ]
-}
-
 /// `ingest FILES NA --out OUT EXTRA…`: its output.
 fn ingest(files: &[&Path], out: &Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec!["ingest"];
-    args.extend(files.iter().map(|f| f.to_str().unwrap()));
-    args.extend_from_slice(&NA);
-    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
-    args.extend_from_slice(extra);
-    stratus(&args)
-}
-
-/// Every file under `dir` with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut m = BTreeMap::new();
-    let mut todo = vec![dir.to_path_buf()];
-    while let Some(d) = todo.pop() {
-        for e in std::fs::read_dir(&d).unwrap().flatten() {
-            if e.file_type().unwrap().is_dir() {
-                todo.push(e.path());
-            } else {
-                m.insert(e.path(), std::fs::read(e.path()).unwrap());
-            }
-        }
-    }
-    m
+    ingest_out(files, &NA, out, extra)
 }
 
 /// The two maps hold the same values; their sidecars the same content (the image id, which
@@ -71,7 +42,7 @@ fn assert_same_map(a: &CloudMap, b: &CloudMap, what: &str) {
 #[test]
 fn the_store_equals_the_png_maps_value_for_value_and_probe_reads_little() {
     let dir = tempfile::tempdir().unwrap();
-    let [f0, f6] = steps();
+    let [f0, f6] = na_pair();
     let (store, png) = (dir.path().join("na.zarr"), dir.path().join("na.png"));
     ok(&ingest(&[&f0, &f6], &store, &[]));
     ok(&ingest(&[&f0, &f6], &png, &[]));
@@ -125,7 +96,7 @@ fn the_store_equals_the_png_maps_value_for_value_and_probe_reads_little() {
 #[test]
 fn append_adds_a_later_step_and_refuses_what_is_not_one() {
     let dir = tempfile::tempdir().unwrap();
-    let [f0, f6] = steps();
+    let [f0, f6] = na_pair();
     let (whole, grown) = (dir.path().join("whole.zarr"), dir.path().join("grown.zarr"));
     ok(&ingest(&[&f0, &f6], &whole, &[]));
     ok(&ingest(&[&f0], &grown, &[]));
@@ -172,7 +143,7 @@ fn append_adds_a_later_step_and_refuses_what_is_not_one() {
 #[test]
 fn racing_appends_are_serialised() {
     let dir = tempfile::tempdir().unwrap();
-    let [f0, f6] = steps();
+    let [f0, f6] = na_pair();
     let store = dir.path().join("race.zarr");
     ok(&ingest(&[&f0], &store, &[]));
     let run = || {
@@ -196,7 +167,7 @@ fn racing_appends_are_serialised() {
 #[test]
 fn a_damaged_or_incomplete_store_is_one_line_exit_2() {
     let dir = tempfile::tempdir().unwrap();
-    let [f0, _] = steps();
+    let [f0, _] = na_pair();
     let store = dir.path().join("d.zarr");
     ok(&ingest(&[&f0], &store, &[]));
     let map = store.to_str().unwrap();

@@ -1,10 +1,13 @@
 //! Helpers the end-to-end tests share: running the binary, finding the sample data, ingesting
-//! the synthetic sample. (Each test crate uses a part of it, hence the allow.)
+//! the synthetic sample, a folder's files; the temporal tests' synthetic deck ([`deck`]).
+//! (Each test crate uses a part of it, hence the allow.)
 #![allow(dead_code)]
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+pub mod deck;
 pub mod series;
 
 /// Run the `stratus` binary with `args`, logging only errors.
@@ -35,6 +38,49 @@ pub fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("data-samples")
         .join(rel)
+}
+
+/// The North Atlantic pair (GFS 2.5°, 2015-09-12 18 UTC, +0 h and +6 h).
+pub fn na_pair() -> [PathBuf; 2] {
+    ["f000", "f006"].map(|f| sample(&format!("gfs-series/gfs.t18z.pgrb2.2p50.{f}")))
+}
+
+/// `ingest FILES… ARGS…`: its output.
+pub fn ingest<P: AsRef<Path>>(files: &[P], args: &[&str]) -> Output {
+    let mut a = vec!["ingest"];
+    a.extend(files.iter().map(|f| f.as_ref().to_str().unwrap()));
+    a.extend_from_slice(args);
+    stratus(&a)
+}
+
+/// `ingest FILES… PLACE… --out OUT EXTRA…` (PLACE: `--region … --size …`): its output.
+pub fn ingest_out<P: AsRef<Path>>(
+    files: &[P],
+    place: &[&str],
+    out: &Path,
+    extra: &[&str],
+) -> Output {
+    let mut a = place.to_vec();
+    a.extend(["--out", out.to_str().unwrap()]);
+    a.extend_from_slice(extra);
+    ingest(files, &a)
+}
+
+/// Every file under `dir` (its path under `dir`) with its bytes.
+pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut m = BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            if e.file_type().unwrap().is_dir() {
+                todo.push(e.path());
+            } else {
+                let rel = e.path().strip_prefix(dir).unwrap().to_path_buf();
+                m.insert(rel, std::fs::read(e.path()).unwrap());
+            }
+        }
+    }
+    m
 }
 
 /// The real Poland series (GFS 0.25°, 2020-08-04 12 UTC, +0/+6/+12 h) ingested as issue 31
