@@ -186,7 +186,8 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
 }
 
 // Footprint-aware sampling (issue 30). The width (m) of what the current sample stands for:
-// the view ray's cone there (pixel angle × distance; a map pixel for the score's nadir rays),
+// the view ray's cone there (pixel angle × distance; a map pixel for the score's nadir rays)
+// or the march's step, whichever is longer,
 // set by the march before each density look-up and kept for that sample's light samples; 0
 // (a point) in the stages that set nothing (section, shadow).
 var<private> footprint_m: f32;

@@ -223,7 +223,10 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
             continue;
         }
         let h_e = altitude_at(r.h, mu, te);
-        footprint_m = r.cone0 + r.cone * te;
+        // What the sample stands for: the ray's cone across, the step along it. The noise is
+        // read at the level of the larger, so detail finer than the step is averaged rather
+        // than aliased into per-pixel noise by the step's jitter (docs/footprint.md).
+        footprint_m = max(r.cone0 + r.cone * te, w.dt);
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
