@@ -105,6 +105,38 @@ fn flying_past_an_edge_leaves_no_ghost_trail() {
     );
 }
 
+/// A still camera while the scene's time jumps 10 min a frame (a time-lapse through `flight`,
+/// which marches every pixel when the history does not fit): no pixel of the last frame shows
+/// this one's weather, so each frame is a full march, not this frame's subset enlarged over a
+/// lattice of other weather (the stair-stepped washboard the time-lapse once drew).
+#[test]
+fn a_time_lapse_from_a_still_camera_marches_every_frame_whole() {
+    let map = edge_map();
+    let (mut a, mut b) = renderers(&map);
+    let cam = Camera::new(1.0, 1.7, 7000.0, 80.0, -25.0);
+    let start = fast_settings().time;
+    for i in 0..4u32 {
+        let mut s = fast_settings();
+        s.frame_index = i;
+        s.time = start + chrono::Duration::minutes(10 * i64::from(i));
+        s.reprojection = Reprojection::On { full_reset: true };
+        let view = View::Perspective(cam);
+        let rep = a
+            .render(&view, SIZE.0, SIZE.1, &s)
+            .expect("time-lapse frame");
+        let reason = a.last_reset();
+        s.reprojection = Reprojection::Off;
+        let full = b.render(&view, SIZE.0, SIZE.1, &s).expect("full frame");
+        let mae = alpha_mae(&rep, &full);
+        let want = if i == 0 { "first frame" } else { "time" };
+        assert_eq!(reason, Some(want), "frame {i}");
+        assert!(
+            mae < 1e-4,
+            "frame {i}: alpha MAE {mae} against the full march"
+        );
+    }
+}
+
 /// Pixels whose every neighbour within `r` pixels is clear (opacity < 0.05) in `o`.
 fn clear_around(o: &Output, r: i64) -> Vec<bool> {
     let (w, h) = (o.width as i64, o.height as i64);

@@ -57,16 +57,19 @@ pub const MAX_DEPTH_CHANGE: f32 = 0.3;
 pub const TELEPORT_M: f64 = 2_000.0;
 /// Turning more than this between two frames (degrees) leaves little history on screen.
 pub const TELEPORT_TURN_DEG: f64 = 30.0;
-/// A larger jump of the scene's time (s) than this starts afresh: at ×600 the window moves
-/// 600 s a second of wall time, at most 1 s a frame (app::moment), so flying with time running
-/// keeps its history.
-pub const TIME_JUMP_S: i64 = 900;
-
 /// A still view keeps a marched pixel while the scene's time has moved less than this (s) since
 /// it was marched: with time running fast (the window's ×600) a pixel marched n² frames ago
 /// shows clouds that have since drifted. 600 s keeps the last 16 frames at ×600 (30 s a
 /// frame at 20 fps), as many as a 4×4 cell's history held before.
 pub const STILL_TIME_S: f64 = 600.0;
+
+/// The fewest frames a pixel must stay usable ([`max_age`]) for the history to add anything:
+/// a still view's first lattice finer than the subset is two whole blocks of 4 ranks, 7 frames
+/// old at its oldest ([`still_lattice`]). A larger step of the scene's time a frame than
+/// `STILL_TIME_S / 7` (86 s) starts afresh: the window's ×600 keeps its history down to 7 fps;
+/// a time-lapse's 10 min a frame marches every frame whole (`flight`) rather than showing the
+/// fresh subset enlarged over history of other weather.
+pub const MIN_HISTORY_AGE: u32 = 7;
 
 /// Every binding of reproject.wgsl.
 pub const BINDINGS: &[Binding] = &[
@@ -138,7 +141,8 @@ pub fn misfit(last: &FrameKey, now: &FrameKey) -> Option<&'static str> {
     if last.map_generation != now.map_generation {
         return Some("map");
     }
-    if (now.time - last.time).num_seconds().abs() > TIME_JUMP_S {
+    let dt_s = (now.time - last.time).num_milliseconds() as f64 * 1e-3;
+    if max_age(dt_s) < MIN_HISTORY_AGE {
         return Some("time");
     }
     let (a, b) = (last.camera.basis(), now.camera.basis());
@@ -445,6 +449,14 @@ mod tests {
         let mut d = a.clone();
         d.time = a.time + chrono::Duration::hours(1);
         assert_eq!(misfit(&a, &d), Some("time"));
+        // A time-lapse's 10 min a frame, and the window's ×600 under 7 fps, keep no history;
+        // ×600 at 10 fps (60 s a frame) keeps it.
+        d.time = a.time + chrono::Duration::minutes(10);
+        assert_eq!(misfit(&a, &d), Some("time"));
+        d.time = a.time - chrono::Duration::seconds(90);
+        assert_eq!(misfit(&a, &d), Some("time"));
+        d.time = a.time + chrono::Duration::seconds(60);
+        assert_eq!(misfit(&a, &d), None);
         let mut e = a.clone();
         e.settings.coverage_mul = 1.5;
         assert_eq!(misfit(&a, &e), Some("settings"));
