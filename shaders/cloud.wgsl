@@ -187,7 +187,7 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
 
 // Footprint-aware sampling (issue 30). The width (m) of what the current sample stands for:
 // the view ray's cone there (pixel angle × distance; a map pixel for the score's nadir rays)
-// or the march's step, whichever is longer,
+// or two of the march's steps, whichever is longer,
 // set by the march before each density look-up and kept for that sample's light samples; 0
 // (a point) in the stages that set nothing (section, shadow).
 var<private> footprint_m: f32;
@@ -195,6 +195,9 @@ var<private> footprint_m: f32;
 // warped streak's compression across the wind, streaked): its level of detail is that much
 // coarser. 1 everywhere else; column_density sets it for its one carve and puts it back.
 var<private> footprint_scale: f32 = 1.0;
+// The coverage of the column (or band) the last density look-up stood in, 0 outside every
+// one: the march strides through clear air only where cloud is sparse (march.wgsl).
+var<private> sample_cover: f32 = 0.0;
 // Texels per side of the shape and detail noise (render::noise::SHAPE_SIZE, DETAIL_SIZE).
 const SHAPE_TEXELS: f32 = 128.0;
 const DETAIL_TEXELS: f32 = 32.0;
@@ -503,6 +506,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
         return 0.0;
     }
     local_count[C_DENSITY] += 1u;
+    sample_cover = cm;
     let thick = max(top - base, 1.0);
     let ph = (h - base) / thick;
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
@@ -559,6 +563,7 @@ fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
 }
 
 fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
+    sample_cover = 0.0;
     if (h < f.shell_base_m || h > f.shell_top_m) {
         return 0.0;
     }
@@ -595,6 +600,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         return 0.0;
     }
     local_count[C_DENSITY] += 1u;
+    sample_cover = s.cm[k];
     let base = f.layer_base[k];
     let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
     let c = layer_carving(s.cm[k], ph);
