@@ -502,3 +502,57 @@ fn check_shape_stats(
         );
     }
 }
+
+/// Linear-RGB RMSE between two renders' cloud layers (premultiplied radiance).
+fn cloud_rmse(a: &Output, b: &Output) -> f64 {
+    let sum: f64 = a
+        .cloud
+        .iter()
+        .zip(&b.cloud)
+        .map(|(x, y)| (0..3).map(|i| ((x[i] - y[i]) as f64).powi(2)).sum::<f64>())
+        .sum();
+    (sum / (3 * a.cloud.len()) as f64).sqrt()
+}
+
+/// The clear-air stride hops the narrow gaps of a mostly cloudy layer by its phase, drawing
+/// rings of equal distance across a deck seen from above (issue 30, docs/footprint.md). Where
+/// the column's coverage is at least 0.5 the march does not stride, so a dense high deck at a
+/// grazing angle is drawn at `fast` as without the stride; a sparse one keeps the stride's
+/// saving.
+#[test]
+fn the_stride_stays_out_of_dense_cloud() {
+    let deck = |c: f64| {
+        CloudMap::from_fn(
+            region(0.0, 4.0, 0.0, 4.0),
+            200,
+            200,
+            &[(LayerKind::High, 7000.0, 7700.0)],
+            noon(),
+            move |_, _| [0.0, 0.0, c],
+        )
+    };
+    let view = View::Perspective(Camera::new(0.5, 0.5, 12_000.0, 45.0, -8.0));
+    let mut s = Settings::new(Preset::Fast, noon());
+    let mut stride_on_off = |c: f64| {
+        let map = deck(c);
+        s.march.shortcuts.clear_stride = true;
+        let on = render(&map, view, 320, 180, &s);
+        s.march.shortcuts.clear_stride = false;
+        let off = render(&map, view, 320, 180, &s);
+        let work = on.stats.steps as f64 / off.stats.steps as f64;
+        (cloud_rmse(&on, &off), work)
+    };
+    let (dense, dense_work) = stride_on_off(0.9);
+    let (sparse, sparse_work) = stride_on_off(0.3);
+    eprintln!(
+        "stride on against off: coverage 0.9 RMSE {dense:.4}, steps ×{dense_work:.2}; coverage 0.3 RMSE {sparse:.4}, steps ×{sparse_work:.2}"
+    );
+    assert!(
+        dense < 0.002,
+        "a dense deck drawn with stride rings: RMSE {dense}"
+    );
+    assert!(
+        sparse_work < 0.9,
+        "the stride no longer saves work in sparse cloud: steps ×{sparse_work}"
+    );
+}
