@@ -19,7 +19,7 @@ out=docs/gallery/timelapse
 # fps 1 over the path's 36 s: frame i is at +10·i minutes.
 "$STRATUS" flight --map "$tmp/na.json" --path docs/flights/natl-timelapse.json \
   --out "$tmp/frames" --size 480x270 --fps 1 --preset balanced \
-  --sun-dir 0.5,-0.5,0.7 --exposure 0 --reprojection off 2> >(grep -v XDG_RUNTIME >&2)
+  --sun-dir 0.5,-0.5,0.7 --exposure 0 2> >(grep -v XDG_RUNTIME >&2)
 
 python3 - "$tmp/frames" "$out" <<'PY'
 import sys

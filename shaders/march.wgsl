@@ -85,7 +85,7 @@ const MIN_SEG_STEPS: f32 = 16.0;
 // to within EDGE_M (m): fast's shortest step over 16, what four halvings gave there. A fixed
 // count left the far field's 1–3 km steps a 60–190 m bracket, so a dense edge's depth (and
 // light) followed the step's phase: grain, and a picture darker than `high` (the start view at
-// noon, fast against high: RMSE 0.057 → 0.036, luminance 0.91 → 0.97; docs/footprint.md).
+// noon, fast against high: RMSE 0.057 → 0.037, luminance 0.91 → 0.97; docs/footprint.md).
 const EDGE_M: f32 = 6.25;
 const MIN_REFINE: f32 = 2.0;
 const MAX_REFINE: f32 = 6.0;

@@ -503,7 +503,9 @@ fn check_shape_stats(
     }
 }
 
-/// Linear-RGB RMSE between two renders' cloud layers (premultiplied radiance).
+/// Linear-RGB RMSE between two renders' cloud layers (premultiplied radiance). Not the
+/// tone-mapped picture (`footprint_bench::rmse`): a bright deck saturates there, and the old
+/// march's rings measured 0.0001 on it against 0.0070 here.
 fn cloud_rmse(a: &Output, b: &Output) -> f64 {
     let sum: f64 = a
         .cloud
