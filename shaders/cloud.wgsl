@@ -201,6 +201,8 @@ var<private> sample_cover: f32 = 0.0;
 // Texels per side of the shape and detail noise (render::noise::SHAPE_SIZE, DETAIL_SIZE).
 const SHAPE_TEXELS: f32 = 128.0;
 const DETAIL_TEXELS: f32 = 32.0;
+// The detail FBM's mean (render::noise::DETAIL_MEAN).
+const DETAIL_MEAN: f32 = 0.486;
 
 // The mip level whose texel is the footprint's width, for a noise of `texel_m` metres a texel:
 // detail finer than about two footprints is averaged away, not point-sampled.
@@ -233,6 +235,13 @@ fn carve(np: vec3<f32>, ns_scale: f32, lo: f32, gd: f32, cm: f32, ph: f32, detai
         let dl = footprint_lod(f.detail_period_m / DETAIL_TEXELS);
         let nd_fbm = textureSampleLevel(detail_tex, repeat_lin, np / f.detail_period_m, dl).r;
         nd_mod = 0.35 * exp(-0.75 * cm) * mix(nd_fbm, 1.0 - nd_fbm, sat(5.0 * ph));
+    } else if (!feature(FLAG_DETAIL)) {
+        // A preset without detail still erodes the edge by the detail's mean, which is what a
+        // far sample of `balanced` reads too: else `fast` drew every edge further out, and its
+        // top-down opacity crossed 0.5 at coverage 0.475 where the other presets' does at 0.5
+        // (a broken field's blocks scored as cloud a block early; issue 30's random Dice cases).
+        // The light samples of a preset with detail keep leaving it out, as before.
+        nd_mod = 0.35 * exp(-0.75 * cm) * mix(DETAIL_MEAN, 1.0 - DETAIL_MEAN, sat(5.0 * ph));
     }
     return sat(remap(ns, nd_mod, 1.0, 0.0, 1.0)) * gd;
 }

@@ -390,6 +390,7 @@ fn noise_fills_every_slice_on_every_backend() {
         let noise = stratus::render::noise::NoiseTextures::generate(&gpu);
         let bytes = noise.read_shape(&gpu).expect("read back");
         check_shape_stats(&gpu, &noise, &bytes);
+        check_detail_mean(&gpu, &noise);
         let side = stratus::render::noise::SHAPE_SIZE as usize;
         let slice = bytes.len() / side;
         for (z, s) in bytes.chunks_exact(slice).enumerate() {
@@ -451,6 +452,25 @@ fn frame_statistics_arrive_without_waiting() {
     assert!(
         r.poll_stats().is_none(),
         "the same frame was reported twice"
+    );
+}
+
+/// A march without detail erodes edges by the detail FBM's mean (cloud.wgsl `carve`): the
+/// constant must be the mean of the noise the GPU made, its statistics' last (1³) level.
+fn check_detail_mean(
+    gpu: &stratus::render::gpu::Gpu,
+    noise: &stratus::render::noise::NoiseTextures,
+) {
+    let last = stratus::render::noise::DETAIL_SIZE.trailing_zeros();
+    let stats = noise
+        .read_detail_stats(gpu, last)
+        .expect("read back detail stats");
+    assert_eq!(stats.len(), 1);
+    let mean = stats[0][0];
+    assert!(
+        (mean - stratus::render::noise::DETAIL_MEAN).abs() < 0.002,
+        "the detail noise's mean is {mean}, DETAIL_MEAN {}",
+        stratus::render::noise::DETAIL_MEAN
     );
 }
 

@@ -13,6 +13,9 @@ use super::texture::{texture_3d, texture_3d_mipped};
 
 pub const SHAPE_SIZE: u32 = 128;
 pub const DETAIL_SIZE: u32 = 32;
+/// The detail FBM's mean over its whole tile (its statistics' last level; checked in
+/// tests/render.rs). A march without detail erodes edges by this mean (cloud.wgsl `carve`).
+pub const DETAIL_MEAN: f32 = 0.486;
 /// The seed every Stratus noise texture is made from: the same clouds on every run.
 pub const SEED: u32 = 0x5715_7a75;
 
@@ -316,46 +319,16 @@ impl NoiseTextures {
         gpu: &Gpu,
         level: u32,
     ) -> Result<Vec<[f32; 4]>, super::RenderError> {
-        let n = SHAPE_SIZE >> level;
-        let row = stats_row_bytes(n);
-        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shape stats readback"),
-            size: row as u64 * n as u64 * n as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.shape_stats,
-                mip_level: level,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: Some(n),
-                },
-            },
-            wgpu::Extent3d {
-                width: n,
-                height: n,
-                depth_or_array_layers: n,
-            },
-        );
-        gpu.queue.submit([enc.finish()]);
-        let raw = super::readback::Pending::whole(buffer).finish(gpu)?;
-        let mut out = Vec::with_capacity((n * n * n) as usize);
-        for r in raw.chunks_exact(row as usize) {
-            for t in r[..(n * 8) as usize].chunks_exact(8) {
-                let h = |i: usize| half::f16::from_le_bytes([t[2 * i], t[2 * i + 1]]).to_f32();
-                out.push([h(0), h(1), h(2), h(3)]);
-            }
-        }
-        Ok(out)
+        read_stats(gpu, &self.shape_stats, SHAPE_SIZE >> level, level)
+    }
+
+    /// One level of the detail FBM's statistics, as [`NoiseTextures::read_shape_stats`].
+    pub fn read_detail_stats(
+        &self,
+        gpu: &Gpu,
+        level: u32,
+    ) -> Result<Vec<[f32; 4]>, super::RenderError> {
+        read_stats(gpu, &self.detail_stats, DETAIL_SIZE >> level, level)
     }
 
     /// The shape texture's bytes, slice by slice (RGBA8): for tests that check what the GPU made.
@@ -384,4 +357,52 @@ impl NoiseTextures {
         gpu.queue.submit([enc.finish()]);
         super::readback::Pending::whole(buffer).finish(gpu)
     }
+}
+
+/// Level `level` (`n` texels a side) of a statistics texture, texel by texel.
+fn read_stats(
+    gpu: &Gpu,
+    stats: &wgpu::Texture,
+    n: u32,
+    level: u32,
+) -> Result<Vec<[f32; 4]>, super::RenderError> {
+    let row = stats_row_bytes(n);
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("noise stats readback"),
+        size: row as u64 * n as u64 * n as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: stats,
+            mip_level: level,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(n),
+            },
+        },
+        wgpu::Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: n,
+        },
+    );
+    gpu.queue.submit([enc.finish()]);
+    let raw = super::readback::Pending::whole(buffer).finish(gpu)?;
+    let mut out = Vec::with_capacity((n * n * n) as usize);
+    for r in raw.chunks_exact(row as usize) {
+        for t in r[..(n * 8) as usize].chunks_exact(8) {
+            let h = |i: usize| half::f16::from_le_bytes([t[2 * i], t[2 * i + 1]]).to_f32();
+            out.push([h(0), h(1), h(2), h(3)]);
+        }
+    }
+    Ok(out)
 }

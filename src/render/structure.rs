@@ -57,6 +57,43 @@ pub struct Prepared {
 
 const CB: u8 = CloudType::Cumulonimbus.code();
 const CU: u8 = CloudType::Cumulus.code();
+/// Shallowest column drawn as cumulonimbus towers (m). A tower is a trunk that spreads into an
+/// anvil over the top fifth of its column (cloud.wgsl `tower_cover`): in a column a kilometre or
+/// two deep that is a grid of thin discs a few hundred metres up, which from above drew
+/// speckle where the map has a broken field (a 700 hPa analysis over the Coral Sea, typed Cb
+/// from CAPE alone, scored Dice 0.946 at `fast`). Deep convection reaches the upper
+/// troposphere (rule 1's top above 400 hPa, about 7 km): a convective column shallower than
+/// 3 km is a cumulus's, and is drawn as one. The map keeps its genus; only the drawing changes.
+pub const MIN_TOWER_M: f32 = 3000.0;
+
+/// The column a texel's cumulonimbus tower spans: the convective cloud, and at least the Cb
+/// layers it replaces (the march draws a Cb layer only through the tower, cloud.wgsl, so a Cb
+/// layer outside the texel's convective column would be drawn as nothing). An analysis has no
+/// convective cloud (its Cb are typed from CAPE, docs/ingest.md rule 1′): there the column was
+/// the low layer's alone, and the anvils of the high layer over it were missing (issue 30, the
+/// Dice gate beyond its cases). `None` where no layer the map has is Cb, or where that column
+/// is shallower than [`MIN_TOWER_M`]: there the Cb codes become cumulus.
+fn tower_column(
+    conv: (f32, f32),
+    (b, t): ([f32; 3], [f32; 3]),
+    codes: &mut [u8; 4],
+    has: impl Fn(usize) -> bool,
+) -> Option<(f32, f32)> {
+    let cb: Vec<usize> = (0..3).filter(|&c| has(c) && codes[c] == CB).collect();
+    if cb.is_empty() {
+        return None;
+    }
+    let column = cb
+        .iter()
+        .fold(conv, |(lo, hi), &c| (lo.min(b[c]), hi.max(t[c])));
+    if column.1 - column.0 < MIN_TOWER_M {
+        for c in codes[..3].iter_mut().filter(|c| **c == CB) {
+            *c = CU;
+        }
+        return None;
+    }
+    Some(column)
+}
 
 /// Thinnest column drawn (m): where RH crosses rh_cr between two close levels the column can
 /// be under 100 m, thinner than a fast march step, so it would flicker in and out with the
@@ -169,20 +206,11 @@ impl Prepared {
             });
             let (b, t) = (col.map(|c| c.0), col.map(|c| c.1));
             let mut conv = widened((alt(s.base[k][3], b[0]), alt(s.top[k][3], t[0])));
-            let codes = s.types[k];
+            let mut codes = s.types[k];
             // Only layers the map has: a code in an absent layer's channel is never drawn.
             let has = |c: usize| bands[c].is_some();
-            if (0..3).any(|c| has(c) && codes[c] == CB) {
-                // The tower spans the convective cloud, and at least the Cb layers it replaces:
-                // the march draws a Cb layer only through the tower (cloud.wgsl), so a Cb layer
-                // outside the texel's convective column would be drawn as nothing. An analysis
-                // has no convective cloud (its Cb are typed from CAPE, docs/ingest.md rule 1′):
-                // there the column was the low layer's alone, and the anvils of the high layer
-                // over it were missing (issue 30, the Dice gate beyond its cases).
-                for c in (0..3).filter(|&c| has(c) && codes[c] == CB) {
-                    conv.0 = conv.0.min(b[c]);
-                    conv.1 = conv.1.max(t[c]);
-                }
+            if let Some(tower) = tower_column(conv, (b, t), &mut codes, has) {
+                conv = tower;
                 towers = Some(towers.map_or(conv, |(a, z)| (a.min(conv.0), z.max(conv.1))));
             }
             streaks |= (0..3).any(|c| has(c) && is_streaked(codes[c]));
@@ -269,6 +297,43 @@ mod tests {
     fn thin_columns_are_deepened_upward() {
         assert_eq!(widened((7117.0, 7203.0)), (7117.0, 8317.0));
         assert_eq!(widened((1000.0, 3000.0)), (1000.0, 3000.0));
+    }
+
+    #[test]
+    fn a_tower_spans_the_convective_cloud_and_its_cb_layers() {
+        let (b, t) = ([500.0, 3500.0, 8000.0], [2000.0, 6000.0, 11000.0]);
+        let mut codes = [CB, 5, CB, 0b10_10];
+        let all = |_: usize| true;
+        // The analysis' column (the low layer's, no convective cloud) widened by the anvils.
+        assert_eq!(
+            tower_column((500.0, 2000.0), (b, t), &mut codes, all),
+            Some((500.0, 11000.0))
+        );
+        assert_eq!(codes, [CB, 5, CB, 0b10_10]);
+        // No Cb layer the map has: no tower.
+        let mut codes = [CB, 5, 1, 0];
+        assert_eq!(
+            tower_column((500.0, 2000.0), (b, t), &mut codes, |c| c != 0),
+            None
+        );
+    }
+
+    #[test]
+    fn a_shallow_convective_column_is_drawn_as_cumulus() {
+        // One level's layer (a 700 hPa map), typed Cb from CAPE, widened to MIN_COLUMN_M: no
+        // room for a trunk and an anvil. The source bits (10 here, like Cb's code) stay.
+        let col = widened((3114.0, 3220.0));
+        let (b, t) = ([col.0; 3], [col.1; 3]);
+        let mut codes = [CB, 0, 0, CB];
+        assert_eq!(tower_column(col, (b, t), &mut codes, |c| c == 0), None);
+        assert_eq!(codes, [CU, 0, 0, CB]);
+        // Just deep enough: a tower.
+        let deep = (1000.0, 1000.0 + MIN_TOWER_M);
+        let mut codes = [CB, 0, 0, 0];
+        assert_eq!(
+            tower_column(deep, ([deep.0; 3], [deep.1; 3]), &mut codes, |c| c == 0),
+            Some(deep)
+        );
     }
 
     #[test]

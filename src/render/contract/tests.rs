@@ -347,6 +347,8 @@ fn shared_constants() -> Vec<(&'static str, Shared)> {
         // The clear air the haze leaves out (frame::CLEAR_AIR_EXTINCTION), atmosphere.wgsl's.
         ("RAYLEIGH_GREEN", F32(frame::RAYLEIGH_GREEN as f32)),
         ("MIE_EXTINCT", F32(frame::MIE_EXTINCTION as f32)),
+        // The edge erosion a march without detail applies (cloud.wgsl `carve`).
+        ("DETAIL_MEAN", F32(crate::render::noise::DETAIL_MEAN)),
         // The ground where a map has none (render::ground's stand-in, scene.wgsl's).
         (
             "DEFAULT_ALBEDO",
