@@ -146,14 +146,20 @@ fn each_map_compiles_only_the_march_its_genera_need() {
         (v.len(), any(Variant::towers), any(Variant::cells))
     };
     assert_eq!(seen(&mut r, &stratus), (1, false, false));
-    // Cumulus compiles the cells' variant, not the towers'.
+    // A convective column too shallow for towers (1.2 km, under render::structure::MIN_TOWER_M)
+    // is drawn as cumulus: the cells' variant, not the towers'.
+    assert_eq!(
+        seen(&mut r, &uniform(CloudType::Cumulonimbus, 0.6, t)),
+        (2, false, true)
+    );
+    // Cumulus compiles the same variant: nothing more.
     assert_eq!(
         seen(&mut r, &uniform(CloudType::Cumulus, 0.6, t)),
         (2, false, true)
     );
-    // Cumulonimbus the towers', alone (not with the cells).
-    let cb = seen(&mut r, &uniform(CloudType::Cumulonimbus, 0.6, t));
-    assert_eq!(cb, (3, true, true));
+    // A deep cumulonimbus the towers', alone (not with the cells).
+    let deep = column(CloudType::Cumulonimbus, 0.6, t, (1000.0, 9000.0), 8.0);
+    assert_eq!(seen(&mut r, &deep), (3, true, true));
     assert!(r
         .march_variants_compiled()
         .iter()
