@@ -450,6 +450,28 @@ fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
     return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z > 1.0);
 }
 
+// Where a sample stands for a quarter of the tower spacing (10 km) a cumulonimbus cluster is
+// drawn as its mean, from half that on: straight down from a map pixel (the score's rays, 9-14 km
+// on a 2.5° map) one tower fills a 4×4 block of pixels or misses it, and the block's opacity
+// followed where the towers happen to stand, not the forecast's coverage; the towers' places
+// are Stratus' own, finer than any GFS grid. A perspective view never gets there (a 5 km
+// footprint is 900 km away at 320×180, beyond the haze's cut-off).
+const TOWER_MEAN_FROM_M: f32 = 3000.0;
+fn tower_fade() -> f32 {
+    return smoothstep(1.0, 2.0, footprint_m / TOWER_MEAN_FROM_M);
+}
+
+// A cumulonimbus cluster's mean (tower_fade): a slab over the column's top from ANVIL_FROM,
+// where the anvils and their shield spread, whose optical depth straight down, −ln(1 − cm),
+// lets through what a fraction cm of opaque cloud does (as cumulus_slab). Density in the
+// carve's units, before the density multiplier.
+fn anvil_slab(cm: f32, ph: f32, thick: f32) -> f32 {
+    let tall = (1.0 - ANVIL_FROM) * thick;
+    let tau = -log(max(1.0 - cm, 0.02));
+    let z = (ph - ANVIL_FROM) / (1.0 - ANVIL_FROM);
+    return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z < 0.0 || z > 1.0);
+}
+
 // How far the cells have faded into their mean at the current sample's footprint: 0 for a
 // footprint under half their spacing, 1 at the whole spacing and beyond.
 fn cell_fade() -> f32 {
@@ -551,7 +573,18 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
             }
         }
     }
-    let carved = mix(carve_with(p, c, cm, ph, detail), slab, fade) * scale;
+    // A cumulonimbus cluster seen from farther than its towers can be told apart: its mean.
+    var cb_mean = 0.0;
+    if (code == T_CUMULONIMBUS) {
+        cb_mean = tower_fade();
+        if (cb_mean >= 1.0) {
+            c.gd = 0.0;
+        }
+    }
+    var carved = mix(carve_with(p, c, cm, ph, detail), slab, fade) * scale;
+    if (cb_mean > 0.0) {
+        carved = mix(carved, anvil_slab(max(body_cm, anvil_cm), ph, thick) * f.density_mul, cb_mean);
+    }
     footprint_scale = 1.0;
     return carved;
 }

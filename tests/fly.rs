@@ -28,8 +28,7 @@ impl Xvfb {
     fn start() -> Xvfb {
         let guard = ONE_SERVER.lock().unwrap_or_else(|e| e.into_inner());
         for n in 90..140 {
-            let lock = format!("/tmp/.X{n}-lock");
-            if Path::new(&lock).exists() {
+            if display_in_use(n) {
                 continue;
             }
             let mut child = Command::new("Xvfb")
@@ -62,6 +61,19 @@ impl Xvfb {
             panic!("Xvfb :{n} did not start within 10 s");
         }
         panic!("no free X display number in 90..140");
+    }
+}
+
+/// Whether display `n` is taken: its lock file names a live process. A lock left by a server
+/// that died (killed with its test run) is stale, and Xvfb takes the number over itself; read
+/// as taken, 50 of them used up every number the tests try.
+fn display_in_use(n: u32) -> bool {
+    match std::fs::read_to_string(format!("/tmp/.X{n}-lock")) {
+        Ok(pid) => match pid.trim().parse::<u32>() {
+            Ok(pid) => Path::new(&format!("/proc/{pid}")).exists(),
+            Err(_) => true,
+        },
+        Err(e) => e.kind() != std::io::ErrorKind::NotFound,
     }
 }
 
