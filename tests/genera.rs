@@ -132,6 +132,33 @@ fn a_cumulus_coverage_is_the_area_under_its_cells() {
     assert!(st > 0.9, "stratus 0.7: {st:.3}");
 }
 
+/// 10–30°N 100–120°E: a top-down ray of a 200-pixel map is 11 km wide, a 2.5° map's pixel.
+const BROAD: Region = Region {
+    south: 10.0,
+    north: 30.0,
+    west: 100.0,
+    east: 120.0,
+};
+
+/// Straight down from a map pixel's width a cumulonimbus cluster is its mean (cloud.wgsl
+/// `tower_fade`): as opaque as its coverage. Its towers, anvils and shield were all or nothing
+/// there (about 0.75 × the coverage below 0.5, 1 above), so the score's blocks over a broken
+/// Cb field followed where the towers stood (docs/footprint.md, "A draw CI made").
+#[test]
+fn a_cumulonimbus_seen_from_a_map_pixel_is_as_opaque_as_its_coverage() {
+    let t = morning();
+    let deep = |c: f64| column_in(BROAD, CloudType::Cumulonimbus, c, t, (1000.0, 9000.0), 8.0);
+    let (mut r, s) = fast(&deep(0.5));
+    for c in [0.3, 0.7] {
+        let (_, mean) = opaque_fraction(&mut r, &deep(c), &s);
+        println!("cumulonimbus at coverage {c}, rays 11 km wide: mean opacity {mean:.3}");
+        assert!(
+            (mean - c).abs() < 0.05,
+            "coverage {c}: mean opacity {mean:.3}"
+        );
+    }
+}
+
 #[test]
 fn each_map_compiles_only_the_march_its_genera_need() {
     let t = morning();
