@@ -450,12 +450,12 @@ fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
     return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z > 1.0);
 }
 
-// Where a sample stands for a quarter of the tower spacing (10 km) a cumulonimbus cluster is
-// drawn as its mean, from half that on: straight down from a map pixel (the score's rays, 9-14 km
-// on a 2.5° map) one tower fills a 4×4 block of pixels or misses it, and the block's opacity
-// followed where the towers happen to stand, not the forecast's coverage; the towers' places
-// are Stratus' own, finer than any GFS grid. A perspective view never gets there (a 5 km
-// footprint is 900 km away at 320×180, beyond the haze's cut-off).
+// Where a sample stands for 6 km or more a cumulonimbus cluster is drawn as its mean, fading
+// in from 3 km: straight down from a map pixel (the score's rays, 6-14 km on the random draws'
+// 2.5° maps) a tower's trunk or anvil filled a 4×4 block of pixels or missed it, and the
+// block's opacity followed where the towers happen to stand, not the forecast's coverage; the
+// towers' places are Stratus' own, finer than any GFS grid. A perspective view never gets
+// there (a 3 km footprint is 500 km away at 320×180, beyond the haze's cut-off).
 const TOWER_MEAN_FROM_M: f32 = 3000.0;
 fn tower_fade() -> f32 {
     return smoothstep(1.0, 2.0, footprint_m / TOWER_MEAN_FROM_M);
