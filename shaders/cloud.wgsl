@@ -191,6 +191,10 @@ fn coarse_empty(uv: vec2<f32>) -> bool {
 // set by the march before each density look-up and kept for that sample's light samples; 0
 // (a point) in the stages that set nothing (section, shadow).
 var<private> footprint_m: f32;
+// The cone's part of it alone (m), without the step: what the pixel covers across the ray.
+// Patterns Stratus places itself, coarser than the noise (the towers), fade by this: a long
+// step in `fast`'s far field would otherwise flatten a cumulonimbus 70 km away into its mean.
+var<private> cone_m: f32;
 // How many times faster than the world the noise is read where the current sample is (a
 // warped streak's compression across the wind, streaked): its level of detail is that much
 // coarser. 1 everywhere else; column_density sets it for its one carve and puts it back.
@@ -454,11 +458,12 @@ fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
 // in from 3 km: straight down from a map pixel (the score's rays, 6-14 km on the random draws'
 // 2.5° maps) a tower's trunk or anvil filled a 4×4 block of pixels or missed it, and the
 // block's opacity followed where the towers happen to stand, not the forecast's coverage; the
-// towers' places are Stratus' own, finer than any GFS grid. A perspective view never gets
-// there (a 3 km footprint is 500 km away at 320×180, beyond the haze's cut-off).
+// towers' places are Stratus' own, finer than any GFS grid. By the cone alone (cone_m), not
+// the step: at 320×180 and a 60° field a 3 km cone is 470 km away, past the haze's cut-off at
+// the default 60 km visibility.
 const TOWER_MEAN_FROM_M: f32 = 3000.0;
 fn tower_fade() -> f32 {
-    return smoothstep(1.0, 2.0, footprint_m / TOWER_MEAN_FROM_M);
+    return smoothstep(1.0, 2.0, cone_m / TOWER_MEAN_FROM_M);
 }
 
 // A cumulonimbus cluster's mean (tower_fade): a slab over the column's top from ANVIL_FROM,

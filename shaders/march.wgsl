@@ -244,7 +244,8 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
         // step apart resolve detail no finer than two steps (Nyquist), so the noise is read at
         // the level of the cone or of two steps, whichever is coarser: finer detail is averaged
         // rather than aliased into per-pixel noise by the step's jitter (docs/footprint.md).
-        footprint_m = max(r.cone0 + r.cone * te, 2.0 * w.dt);
+        cone_m = r.cone0 + r.cone * te;
+        footprint_m = max(cone_m, 2.0 * w.dt);
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
