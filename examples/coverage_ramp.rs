@@ -4,7 +4,10 @@
 //! map with structure images (DESIGN §7 profiles). That crossing is what the score's map
 //! threshold stands for (docs/score.md).
 //!
-//! `cargo run --release --example coverage_ramp [-- --genera-only] [GENUS…]`
+//! `--span DEG` makes the region DEG degrees a side (default 10: a ray 5.6 km wide north to
+//! south; 20 gives 11 km, a 2.5° map's pixel as the score sees it).
+//!
+//! `cargo run --release --example coverage_ramp [-- --genera-only] [--span DEG] [GENUS…]`
 
 use chrono::{DateTime, Utc};
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
@@ -20,12 +23,26 @@ fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let genera_only = args.iter().any(|a| a == "--genera-only");
     // Any other argument names the genera to measure (all when none is named).
-    let named: Vec<&String> = args.iter().filter(|a| !a.starts_with("--")).collect();
+    let span_at = args.iter().position(|a| a == "--span");
+    let span: f64 = match span_at {
+        Some(i) => args
+            .get(i + 1)
+            .and_then(|v| v.parse().ok())
+            .filter(|v| (1.0..=60.0).contains(v))
+            .ok_or_else(|| anyhow::anyhow!("--span wants degrees, 1 to 60"))?,
+        None => 10.0,
+    };
+    let named: Vec<&String> = args
+        .iter()
+        .enumerate()
+        .filter(|&(i, a)| !a.starts_with("--") && span_at.is_none_or(|s| i != s + 1))
+        .map(|(_, a)| a)
+        .collect();
     let region = Region {
         south: 20.0,
-        north: 30.0,
+        north: 20.0 + span,
         west: 100.0,
-        east: 110.0,
+        east: 100.0 + span,
     };
     let t: DateTime<Utc> =
         DateTime::parse_from_rfc3339("2024-06-21T12:00:00Z")?.with_timezone(&Utc);
@@ -37,7 +54,7 @@ fn main() -> anyhow::Result<()> {
     ];
     let ramp = |kind: LayerKind, base, top| {
         CloudMap::from_fn(region, w, h, &[(kind, base, top)], t, |_, lon| {
-            let c = (lon - 100.0) / 10.0;
+            let c = (lon - 100.0) / span;
             [c, c, c]
         })
     };

@@ -454,16 +454,18 @@ fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
     return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z > 1.0);
 }
 
-// Where a sample stands for 6 km or more a cumulonimbus cluster is drawn as its mean, fading
-// in from 3 km: straight down from a map pixel (the score's rays, 6-14 km on the random draws'
-// 2.5° maps) a tower's trunk or anvil filled a 4×4 block of pixels or missed it, and the
-// block's opacity followed where the towers happen to stand, not the forecast's coverage; the
-// towers' places are Stratus' own, finer than any GFS grid. By the cone alone (cone_m), not
-// the step: at 320×180 and a 60° field a 3 km cone is 470 km away, past the haze's cut-off at
-// the default 60 km visibility.
-const TOWER_MEAN_FROM_M: f32 = 3000.0;
+// Where a view ray's cone is 4 km wide or more a cumulonimbus cluster is drawn as its mean:
+// straight down from a map pixel (the score's rays, 6-14 km on the random draws' 2.5° maps) a
+// tower's trunk or anvil filled a 4×4 block of pixels or missed it, and the block's opacity
+// followed where the towers happen to stand, not the forecast's coverage; the towers' places
+// are Stratus' own, finer than any GFS grid. A switch, not a blend: blended as densities, the
+// towers' opaque cores stayed opaque under the slab and a half-faded field came out more
+// opaque than its coverage (0.53 at coverage 0.375, 5.5 km rays). By the cone alone (cone_m),
+// not the step: at 320×180 and a 60° field a 4 km cone is 620 km away, past the haze's cut-off
+// at the default 60 km visibility.
+const TOWER_MEAN_FROM_M: f32 = 4000.0;
 fn tower_fade() -> f32 {
-    return smoothstep(1.0, 2.0, cone_m / TOWER_MEAN_FROM_M);
+    return select(0.0, 1.0, cone_m >= TOWER_MEAN_FROM_M);
 }
 
 // A cumulonimbus cluster's mean (tower_fade): a slab over the column's top from ANVIL_FROM,
