@@ -79,13 +79,13 @@ fn tower_column(
     codes: &mut [u8; 4],
     has: impl Fn(usize) -> bool,
 ) -> Option<(f32, f32)> {
-    let cb: Vec<usize> = (0..3).filter(|&c| has(c) && codes[c] == CB).collect();
-    if cb.is_empty() {
+    let is_cb = |c: &usize| has(*c) && codes[*c] == CB;
+    if !(0..3).any(|c| is_cb(&c)) {
         return None;
     }
-    let column = cb
-        .iter()
-        .fold(conv, |(lo, hi), &c| (lo.min(b[c]), hi.max(t[c])));
+    let column = (0..3)
+        .filter(is_cb)
+        .fold(conv, |(lo, hi), c| (lo.min(b[c]), hi.max(t[c])));
     if column.1 - column.0 < MIN_TOWER_M {
         for c in codes[..3].iter_mut().filter(|c| **c == CB) {
             *c = CU;
