@@ -199,6 +199,11 @@ var<private> cone_m: f32;
 // warped streak's compression across the wind, streaked): its level of detail is that much
 // coarser. 1 everywhere else; column_density sets it for its one carve and puts it back.
 var<private> footprint_scale: f32 = 1.0;
+// The altitude span (m) of the march step the current view sample stands for, or of the light
+// step for a light sample; 0 (a point) in the stages that set nothing. The mean slabs
+// (cumulus_slab, anvil_slab) are averaged over it: a far step of 1-1.5 km is longer than a
+// slab is thick, and one point of the slab's profile in it stood for the whole step.
+var<private> step_dz: f32 = 0.0;
 // The coverage of the column (or band) the last density look-up stood in, 0 outside every
 // one: the march strides through clear air only where cloud is sparse (march.wgsl).
 var<private> sample_cover: f32 = 0.0;
@@ -450,8 +455,22 @@ fn cumulus_slab(cm: f32, ph: f32, thick: f32) -> f32 {
     // A raised cosine over the cells' height, its integral the height: smooth at both ends, so
     // a march step that crosses the slab's top or bottom does not add or lose optical depth (a
     // flat slab with hard ends was drawn up to a step too deep: the field's edge a block wide).
-    let z = ph * thick / tall;
-    return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z > 1.0);
+    return tau / (f.extinction * tall) * raised_cosine_mean(ph * thick / tall, step_dz / tall);
+}
+
+// The mean of the raised cosine 1 − cos(2πu) on 0 ≤ u ≤ 1 (0 outside) over the window of width
+// w (the profile's units) centred on u: its integral, u − sin(2πu)/2π between the window's
+// clamped ends, over w. For w → 0 the profile's value at u. Samples a window apart then add up
+// to the slab's whole optical depth wherever they fall, however thin the slab is against the
+// step: a far march took one point of a slab thinner than its step, its optical depth then
+// following where the point fell (grain over a faded cumulus field at 250 km).
+fn raised_cosine_mean(u: f32, w: f32) -> f32 {
+    if (w < 1e-3) {
+        return select(1.0 - cos(6.2831853 * u), 0.0, u < 0.0 || u > 1.0);
+    }
+    let a = clamp(u - 0.5 * w, 0.0, 1.0);
+    let b = clamp(u + 0.5 * w, 0.0, 1.0);
+    return ((b - a) - (sin(6.2831853 * b) - sin(6.2831853 * a)) / 6.2831853) / w;
 }
 
 // Where a view ray's cone is 4 km wide or more a cumulonimbus cluster is drawn as its mean:
@@ -476,7 +495,7 @@ fn anvil_slab(cm: f32, ph: f32, thick: f32) -> f32 {
     let tall = (1.0 - ANVIL_FROM) * thick;
     let tau = -log(max(1.0 - cm, 0.02));
     let z = (ph - ANVIL_FROM) / (1.0 - ANVIL_FROM);
-    return select(tau / (f.extinction * tall) * (1.0 - cos(6.2831853 * z)), 0.0, z < 0.0 || z > 1.0);
+    return tau / (f.extinction * tall) * raised_cosine_mean(z, step_dz / tall);
 }
 
 // How far the cells have faded into their mean at the current sample's footprint: 0 for a

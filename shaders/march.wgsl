@@ -75,6 +75,7 @@ fn light_depth(pos: vec3<f32>, h: f32, np: vec3<f32>, key: vec3<f32>, n: u32) ->
         let hl = altitude_at(h, mu, sm);
         let pl = pos + key * sm;
         local_count[C_LIGHT] += 1u;
+        step_dz = abs(mu) * ds;
         tau += density(pl, hl, np + key * sm, false) * f.extinction * ds;
     }
     return tau;
@@ -246,6 +247,8 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
         // rather than aliased into per-pixel noise by the step's jitter (docs/footprint.md).
         cone_m = r.cone0 + r.cone * te;
         footprint_m = max(cone_m, 2.0 * w.dt);
+        // The altitude the step spans: d(altitude)/dt along the ray times the step.
+        step_dz = abs(te + (EARTH_R + r.h) * mu) / (EARTH_R + h_e) * w.dt;
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
