@@ -44,10 +44,16 @@ impl Xvfb {
                 .stderr(Stdio::null())
                 .spawn()
                 .expect("Xvfb is needed for the window test (Debian: apt-get install xvfb)");
+            // Ready when the socket accepts a connection, not when its file exists: a server
+            // killed before (SIGKILL, a test run cut off) leaves its socket file behind, and a
+            // client that comes before the new server binds it is refused (CI, stop 39).
             let sock = format!("/tmp/.X11-unix/X{n}");
             let t0 = Instant::now();
             while t0.elapsed() < Duration::from_secs(10) {
-                if Path::new(&sock).exists() {
+                if let Ok(Some(status)) = child.try_wait() {
+                    panic!("Xvfb :{n} exited at start: {status}");
+                }
+                if std::os::unix::net::UnixStream::connect(&sock).is_ok() {
                     return Xvfb {
                         child,
                         display: format!(":{n}"),
@@ -78,7 +84,18 @@ fn display_in_use(n: u32) -> bool {
 }
 
 impl Drop for Xvfb {
+    /// SIGTERM first, so the server removes its lock and socket; SIGKILL if it lingers.
     fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(5) {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
