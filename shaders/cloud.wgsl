@@ -665,13 +665,9 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         local_count[C_OUTSIDE] += 1u;
     }
     if (feature(FLAG_STRUCTURE)) {
-        // Outside every layer's envelope and the towers' there is nothing to look up.
-        let in_tower = h >= f.tower_base_m && h <= f.tower_top_m;
-        var in_layer = false;
-        for (var j = 0; j < 3; j++) {
-            in_layer = in_layer || (f.layer_scale[j] > 0.0 && h >= f.layer_base[j] && h <= f.layer_top[j] && s.cm[j] > 0.0);
-        }
-        if (!in_tower && !in_layer) {
+        // Outside every cloudy layer's envelope and the towers' there is nothing to look up
+        // (a column without cover has no towers either: column_density would give 0).
+        if (!envelope_overlaps(h, h)) {
             return 0.0;
         }
         return column_density(uv, h, np, detail, s);
