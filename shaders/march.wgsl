@@ -104,27 +104,42 @@ const FINE_AFTER_CLOUD: u32 = 8u;
 // twin for at most 5 % more density samples on the bench's scenes).
 const STRIDE_COVER_MAX: f32 = 0.5;
 
-// The most altitude (m) a stride may span in or into a layer's envelope on a map with cumulus
-// or cumulonimbus: less than the thinnest slab drawn there (a scattered cumulus field's mean,
-// some 350 m at 5 % cover), so a stride cannot hop it. Down a slant the altitude goes fast:
-// 4–6 km strides through a far field 0.6 km thick let through 40 % of its opacity
-// (tests/genera.rs, far cumulus at a slant: 0.097 against 0.261).
-const STRIDE_DZ_M: f32 = 300.0;
+// The most altitude (m) one step or stride may span in or into the envelope of a layer with
+// cover, on a map with cumulus or cumulonimbus. Less than the thinnest slab drawn there (a
+// scattered cumulus field's mean, some 350 m at 5 % cover), so a stride cannot hop it: 4–6 km
+// strides down a slant through a far field 0.6 km thick let through 40 % of its opacity
+// (tests/genera.rs, far cumulus at a slant: 0.097 against 0.261). And a layer is crossed in
+// several samples, not one or two: the far field's normal steps of 1–1.5 km fell 0.8–1.2 km
+// down a steep view, so a thin genus layer was met at one jittered height of its profile or
+// not at all (the 250 km view against `reference`: 0.106 → 0.051, docs/footprint.md).
+const ENVELOPE_DZ_M: f32 = 300.0;
 
-// The stride multiple `m` a clear sample at altitude h may take, one normal step changing the
-// altitude by dh: m where the stride stays out of every envelope or spans little altitude (a
-// grazing far ray keeps its stride), less where it would cross one; 1 (no stride) below 2.
-fn stride_mult(m: f32, h: f32, dh: f32) -> f32 {
-    // Only the cumulus and cumulonimbus means are slabs thinner than a stride; a stratiform
-    // layer's carve spans its column (the bench's maps: unchanged, the code compiled out).
+// A step of `dt` m from altitude h, where the altitude changes by `slope` per metre of the ray:
+// dt where it stays out of every cloudy envelope or spans little altitude (a grazing far ray
+// keeps its length), else shortened to span ENVELOPE_DZ_M.
+fn envelope_step(dt: f32, h: f32, slope: f32) -> f32 {
+    // Only maps with cumulus or cumulonimbus: elsewhere the code is compiled out (the bench's
+    // maps: unchanged, picture for picture).
     if (!feature(FLAG_CELLS) && !feature(FLAG_TOWERS)) {
-        return m;
+        return dt;
     }
-    let h1 = h + m * dh;
-    if (m * abs(dh) <= STRIDE_DZ_M || !envelope_overlaps(min(h, h1), max(h, h1))) {
-        return m;
+    let dh = slope * dt;
+    if (abs(dh) <= ENVELOPE_DZ_M || !envelope_overlaps(min(h, h + dh), max(h, h + dh))) {
+        return dt;
     }
-    let capped = STRIDE_DZ_M / abs(dh);
+    return max(ENVELOPE_DZ_M / abs(slope), f.step_min_m);
+}
+
+// The march's step at distance t in a segment whose longest step is seg_dt (variable step: it
+// grows with the distance), before envelope_step shortens it.
+fn natural_step(t: f32, seg_dt: f32) -> f32 {
+    return min(clamp(f.step_min_m + f.step_growth * t, f.step_min_m, f.step_max_m), seg_dt);
+}
+
+// The stride multiple `m` of a clear sample's step `dt` at altitude h: m, or less where the
+// stride would span too much of an envelope (envelope_step); 1 (no stride) below 2.
+fn stride_mult(m: f32, dt: f32, h: f32, slope: f32) -> f32 {
+    let capped = envelope_step(m * dt, h, slope) / dt;
     return select(1.0, capped, capped >= 2.0);
 }
 
@@ -248,32 +263,35 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
             w.fine_left = 0u;
             continue;
         }
+        // While refining, the point half-way between the last clear point and t (cloudy).
+        let te = select(w.t, 0.5 * (w.lo_t + w.t), w.refine > 0u);
+        let h_e = altitude_at(r.h, mu, te);
+        // d(altitude)/dt along the ray there.
+        let slope = (te + (EARTH_R + r.h) * mu) / (EARTH_R + h_e);
         if (w.refine == 0u) {
             if (w.steps >= max_steps) {
                 w.finished = true;
                 break;
             }
             w.steps += 1u;
-            w.dt = min(clamp(f.step_min_m + f.step_growth * w.t, f.step_min_m, f.step_max_m), w.seg_dt);
+            w.dt = envelope_step(natural_step(w.t, w.seg_dt), h_e, slope);
         }
-        // While refining, the point half-way between the last clear point and t (cloudy).
-        let te = select(w.t, 0.5 * (w.lo_t + w.t), w.refine > 0u);
         let uv_e = sample_uv(origin + r.d * te);
         if (w.refine == 0u && skip && coarse_empty(uv_e)) {
             local_count[C_SKIPPED] += 1u;
             w.t += max(w.dt, f.skip_m);
             continue;
         }
-        let h_e = altitude_at(r.h, mu, te);
         // What the sample stands for: the ray's cone across, the step along it. Samples a
         // step apart resolve detail no finer than two steps (Nyquist), so the noise is read at
         // the level of the cone or of two steps, whichever is coarser: finer detail is averaged
         // rather than aliased into per-pixel noise by the step's jitter (docs/footprint.md).
+        // A step envelope_step shortened samples the altitude more finely, not the noise: read
+        // at its level the far field's thresholded noise turned to pixel-sized specks (the 250
+        // km view 0.019 → 0.041 against its 4×4 twin; at the natural step's level 0.017).
         cone_m = r.cone0 + r.cone * te;
-        footprint_m = max(cone_m, 2.0 * w.dt);
-        // The altitude the step spans: d(altitude)/dt along the ray times the step.
-        let dh = (te + (EARTH_R + r.h) * mu) / (EARTH_R + h_e) * w.dt;
-        step_dz = abs(dh);
+        footprint_m = max(cone_m, 2.0 * natural_step(w.t, w.seg_dt));
+        step_dz = abs(slope * w.dt);
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
@@ -332,7 +350,7 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
             w.stride = false;
             w.mult = 1.0;
         } else if (may_stride) {
-            w.mult = stride_mult(min(w.mult * 2.0, max_mult), h_e, dh);
+            w.mult = stride_mult(min(w.mult * 2.0, max_mult), w.dt, h_e, slope);
             w.stride = w.mult > 1.0;
         }
         w.t += select(w.dt, w.mult * w.dt, w.stride);
