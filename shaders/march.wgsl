@@ -139,7 +139,12 @@ fn natural_step(t: f32, seg_dt: f32) -> f32 {
 // The stride multiple `m` of a clear sample's step `dt` at altitude h: m, or less where the
 // stride would span too much of an envelope (envelope_step); 1 (no stride) below 2.
 fn stride_mult(m: f32, dt: f32, h: f32, slope: f32) -> f32 {
-    let capped = envelope_step(m * dt, h, slope) / dt;
+    let span = envelope_step(m * dt, h, slope);
+    // m itself where nothing was cut (not m·dt / dt, which is m only to a rounding).
+    if (span >= m * dt) {
+        return m;
+    }
+    let capped = span / dt;
     return select(1.0, capped, capped >= 2.0);
 }
 
@@ -223,12 +228,15 @@ struct Walk {
     dt: f32,
     uv: vec2<f32>,
     h: f32,
+    // The step before envelope_step shortened it (kept through a bisection, which moves t):
+    // what the noise's level of detail follows.
+    dt0: f32,
 };
 
 fn start_walk(span: Segments, jitter: f32) -> Walk {
     let st = seg_start(span.seg, jitter);
     return Walk(span.seg, span.seg2, false, st.x, st.y, 0u, false, 1.0, 0u, true, 0u, 0.0, false,
-                0.0, 0.0, vec2<f32>(0.0), 0.0);
+                0.0, 0.0, vec2<f32>(0.0), 0.0, 0.0);
 }
 
 // Walk on to the ray's next sample with cloud, looking up density only: true with the sample
@@ -274,7 +282,8 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
                 break;
             }
             w.steps += 1u;
-            w.dt = envelope_step(natural_step(w.t, w.seg_dt), h_e, slope);
+            w.dt0 = natural_step(w.t, w.seg_dt);
+            w.dt = envelope_step(w.dt0, h_e, slope);
         }
         let uv_e = sample_uv(origin + r.d * te);
         if (w.refine == 0u && skip && coarse_empty(uv_e)) {
@@ -290,7 +299,7 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
         // at its level the far field's thresholded noise turned to pixel-sized specks (the 250
         // km view 0.019 → 0.041 against its 4×4 twin; at the natural step's level 0.017).
         cone_m = r.cone0 + r.cone * te;
-        footprint_m = max(cone_m, 2.0 * natural_step(w.t, w.seg_dt));
+        footprint_m = max(cone_m, 2.0 * w.dt0);
         step_dz = abs(slope * w.dt);
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
