@@ -250,6 +250,21 @@ fn horizon_elev(h: f32) -> f32 {
     return -acos(clamp(EARTH_R / (EARTH_R + max(h, 0.0)), -1.0, 1.0));
 }
 
+// The jitter resolve's 3×3 weights (centre, edge, corner) for a march whose step grows by
+// `growth` per metre of distance. The grain the jitter leaves scales with the step: `fast`'s
+// (2 % of the distance) needs the full 3×3 mean; from `balanced`'s 1 % down, a centre-weighted
+// kernel (2, 1, ¼) leaves less grain than a mean costs in blur (docs/footprint.md, "The
+// resolve follows the step").
+fn resolve_weights(growth: f32) -> vec3<f32> {
+    let t = clamp((0.02 - growth) / 0.01, 0.0, 1.0);
+    return mix(vec3<f32>(1.0), vec3<f32>(2.0, 1.0, 0.25), t);
+}
+
+// The weight of the neighbour (i, j) ∈ [−1, 1]² under `resolve_weights`' w.
+fn resolve_weight(w: vec3<f32>, i: i32, j: i32) -> f32 {
+    return select(select(w.z, w.y, i == 0 || j == 0), w.x, i == 0 && j == 0);
+}
+
 // Perspective view direction through pixel position px (pixel units, centre = +0.5).
 fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
     let ndc = vec2<f32>(px.x / f.out_size.x * 2.0 - 1.0, 1.0 - px.y / f.out_size.y * 2.0);

@@ -24,11 +24,12 @@ struct EmbedParams {
     stratus_exposure: u32,
     // 1: ACES-tone-map the cloud (a display-referred target); 0: linear radiance (HDR).
     tone: u32,
-    // 1: resolve the march's jitter by a 3×3 mean over pixels at a like host depth.
+    // 1: resolve the march's jitter by a 3×3 kernel over pixels at a like host depth.
     resolve: u32,
     // 1: Stratus' own sky (the march's background) where the host drew nothing.
     sky: u32,
-    _pad1: u32,
+    // The march's step growth per metre of distance: the resolve's weights (`resolve_weights`).
+    step_growth: f32,
     _pad2: u32,
 };
 
@@ -89,21 +90,23 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let dims = vec2<i32>(i32(p.width), i32(p.height));
     var c = textureLoad(cloud, at, 0);
     if (p.resolve != 0u) {
-        // The march's interleaved-gradient jitter spreads evenly over each 3×3 block (as the
-        // present stage resolves it), among the pixels on the same host surface.
+        // The march's interleaved-gradient jitter spreads evenly over each 3×3 block (resolved
+        // as the present stage does), among the pixels on the same host surface.
         let here = far_in[u32(at.y) * p.width + u32(at.x)];
+        let rw = resolve_weights(p.step_growth);
         var sum = vec4<f32>(0.0);
         var n = 0.0;
         for (var j = -1; j <= 1; j++) {
             for (var i = -1; i <= 1; i++) {
                 let q = clamp(at + vec2<i32>(i, j), vec2<i32>(0), dims - 1);
                 if (same_surface(here, far_in[u32(q.y) * p.width + u32(q.x)])) {
-                    sum += textureLoad(cloud, q, 0);
-                    n += 1.0;
+                    let w = resolve_weight(rw, i, j);
+                    sum += w * textureLoad(cloud, q, 0);
+                    n += w;
                 }
             }
         }
-        c = sum / max(n, 1.0);
+        c = sum / max(n, 1e-6);
     }
     var scale = p.exposure_mul;
     if (p.stratus_exposure != 0u) {

@@ -108,15 +108,18 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
             // Resolve the march's interleaved-gradient jitter, which spreads its values evenly
             // over every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and
-            // thin layers otherwise show the jitter's lattice: the 3×3 mean. Not for the
-            // score's top-down frames (a mask view, where a blur only moves edges).
+            // thin layers otherwise show the jitter's lattice: a 3×3 kernel as wide as the
+            // step's grain asks (common.wgsl `resolve_weights`). Not for the score's top-down
+            // frames (a mask view, where a blur only moves edges).
+            let rw = resolve_weights(f.step_growth);
             c = vec4<f32>(0.0);
             for (var j = -1; j <= 1; j++) {
                 for (var i = -1; i <= 1; i++) {
-                    c += textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
+                    let t = textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
+                    c += resolve_weight(rw, i, j) * t;
                 }
             }
-            c /= 9.0;
+            c /= rw.x + 4.0 * (rw.y + rw.z);
         } else {
             c = textureLoad(cloud, near_at, 0);
         }

@@ -452,13 +452,9 @@ fn a_far_cumulus_field_at_a_slant_is_not_lost_between_the_steps() {
     // Each patch ray's elevation where it meets the slab (about 1.1 km up): the Earth's
     // curvature makes it shallower than the camera's pitch (33.4° at the centre, not 35°).
     let b = cam.basis();
-    let tn = (cam.fov_deg.to_radians() * 0.5).tan();
-    let aspect = f64::from(w) / f64::from(h);
     let sines: Vec<f64> = patch()
         .map(|(x, y)| {
-            let sx = (2.0 * (f64::from(x) + 0.5) / f64::from(w) - 1.0) * tn * aspect;
-            let sy = (1.0 - 2.0 * (f64::from(y) + 0.5) / f64::from(h)) * tn;
-            let d = (b.forward + b.right * sx + b.view_up * sy).normalize();
+            let d = cam.pixel_ray(f64::from(x) + 0.5, f64::from(y) + 0.5, w, h);
             let r = stratus::render::camera::EARTH_R + 1100.0;
             let (pb, pc) = (b.position.dot(d), b.position.length_squared() - r * r);
             let p = b.position + d * (-pb - (pb * pb - pc).sqrt());

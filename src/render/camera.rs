@@ -140,6 +140,17 @@ impl Camera {
         }
     }
 
+    /// Unit ECEF direction through pixel position (x right, y down, continuous; a pixel's
+    /// centre is +0.5): the inverse of [`Camera::project`], and the march's `persp_dir`.
+    pub fn pixel_ray(&self, x: f64, y: f64, width: u32, height: u32) -> DVec3 {
+        let b = self.basis();
+        let tn = (self.fov_deg.to_radians() * 0.5).tan();
+        let aspect = f64::from(width) / f64::from(height);
+        let sx = (2.0 * x / f64::from(width) - 1.0) * tn * aspect;
+        let sy = (1.0 - 2.0 * y / f64::from(height)) * tn;
+        (b.forward + b.right * sx + b.view_up * sy).normalize()
+    }
+
     /// Pixel (x right, y down, continuous) where an ECEF point appears, or None behind the camera.
     pub fn project(&self, point: DVec3, width: u32, height: u32) -> Option<(f64, f64)> {
         let b = self.basis();
@@ -167,6 +178,21 @@ pub fn ecef(lat_deg: f64, lon_deg: f64, alt_m: f64) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixel_ray_is_the_inverse_of_project() {
+        let mut cam = Camera::new(35.0, 120.0, 9000.0, 40.0, -25.0);
+        cam.roll_deg = 12.0;
+        let b = cam.basis();
+        for (x, y) in [(0.5, 0.5), (160.0, 90.0), (300.25, 17.75), (319.5, 179.5)] {
+            let p = b.position + cam.pixel_ray(x, y, 320, 180) * 50_000.0;
+            let (px, py) = cam.project(p, 320, 180).expect("in front of the camera");
+            assert!(
+                (px - x).abs() < 1e-6 && (py - y).abs() < 1e-6,
+                "({x}, {y}) -> ({px}, {py})"
+            );
+        }
+    }
 
     #[test]
     fn basis_is_orthonormal_even_looking_straight_down() {

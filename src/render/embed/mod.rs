@@ -269,6 +269,7 @@ impl EmbeddedClouds {
             stratus_exposure: stratus,
             tone: !is_float(frame.color.texture().format()),
             resolve: self.settings.march.shortcuts.jitter,
+            step_growth: self.settings.march.effective().step_growth,
             sky: self.sky,
         };
         self.stage

@@ -26,7 +26,8 @@ crate::gpu_struct! {
         pub tone: u32,
         pub resolve: u32,
         pub sky: u32,
-        pub _pad1: u32,
+        /// The march's step growth per metre: the jitter resolve's weights.
+        pub step_growth: f32,
         pub _pad2: u32,
     }
 }
@@ -49,6 +50,8 @@ pub(super) struct Look {
     pub stratus_exposure: bool,
     pub tone: bool,
     pub resolve: bool,
+    /// The march's step growth per metre (the resolve's weights follow the step's grain).
+    pub step_growth: f32,
     pub sky: bool,
 }
 
@@ -374,6 +377,7 @@ impl EmbedStage {
             tone: u32::from(look.tone),
             resolve: u32::from(look.resolve),
             sky: u32::from(look.sky),
+            step_growth: look.step_growth,
             ..Default::default()
         };
         gpu.queue
