@@ -59,3 +59,24 @@ pub fn repeated(real: &Path, name: &str, n: usize, every_h: f64, mean_winds: boo
     write_json(&path, &series);
     path
 }
+
+/// Give every interval of the series at `path` but the last its first interval's stored motion,
+/// where it has none, so no interval is estimated at load (seconds each for a large map). For
+/// tests of what the timeline holds and uploads, not of where the cloud goes: the borrowed
+/// motion is the real +0 → +6 h one, wrong for a +6 → +0 h pair.
+pub fn motion_everywhere(path: &Path) {
+    let mut series = read_json(path);
+    let steps = series["steps"].as_array_mut().unwrap();
+    let first = steps[0]["motion"].clone();
+    assert!(
+        !first.is_null(),
+        "the series' first step has no stored motion"
+    );
+    let n = steps.len();
+    for step in steps.iter_mut().take(n - 1) {
+        if step.get("motion").is_none() {
+            step["motion"] = first.clone();
+        }
+    }
+    write_json(path, &series);
+}
