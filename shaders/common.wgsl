@@ -129,6 +129,7 @@ const FLAG_TOWERS: u32 = 256u;  // the map holds cumulonimbus towers
 const FLAG_STREAKS: u32 = 512u; // the map holds cirrus-like genera, streaked along the wind
 const FLAG_BLEND: u32 = 1024u;  // two forecast steps blended along the layer winds (render::blend)
 const FLAG_CELLS: u32 = 2048u;  // the map holds cumulus: cells (render::cells)
+const FLAG_FIXED_EXPOSURE: u32 = 4096u; // Frame.exposure is shown as it is (no adaptation)
 
 fn has_flag(f: Frame, bit: u32) -> bool {
     return (f.flags & bit) != 0u;
@@ -272,6 +273,42 @@ fn persp_dir(f: Frame, px: vec2<f32>) -> vec3<f32> {
     return normalize(f.cam_fwd + f.cam_right * (ndc.x * tn * f.aspect) + f.cam_view_up * (ndc.y * tn));
 }
 
+// The cosine to the camera's vertical of a ray grazing the Earth's limb (the sea-level horizon).
+fn limb_mu(f: Frame) -> f32 {
+    let k = EARTH_R / (EARTH_R + max(f.cam_alt_m, 0.0));
+    return -sqrt(max(1.0 - k * k, 0.0));
+}
+
+// Which side of the Earth's limb the pixel at `px` lies on: 1 above, −1 below, 0 where the limb
+// crosses it (its corners' rays lie on both sides of the horizon's cone). A pixel the limb
+// crosses covers sky and sea, and one ray shows one of them: the march takes one ray in each
+// part there (`limb_share`), and the present stage's resolve does not blend across the limb.
+fn limb_side(f: Frame, px: vec2<f32>) -> i32 {
+    let mu_h = limb_mu(f);
+    // A pixel is at most one pixel's angle at the view's middle from its centre ray to a corner,
+    // and a ray's cosine to the vertical moves no faster than its angle: most pixels are settled
+    // by their centre alone.
+    let off = dot(persp_dir(f, px), f.cam_up) - mu_h;
+    if (abs(off) > 2.0 * f.tan_half_fov / f.out_size.y) {
+        return select(-1, 1, off > 0.0);
+    }
+    var above = 0;
+    for (var i = 0u; i < 4u; i++) {
+        let c = px + vec2<f32>(select(-0.5, 0.5, (i & 1u) != 0u), select(-0.5, 0.5, (i & 2u) != 0u));
+        above += select(0, 1, dot(persp_dir(f, c), f.cam_up) > mu_h);
+    }
+    return select(select(0, -1, above == 0), 1, above == 4);
+}
+
+// Where the limb crosses the pixel's middle column, as the share of its height above that point
+// (the ray's angle to the limb is linear in y to well under a pixel's height).
+fn limb_share(f: Frame, px: vec2<f32>) -> f32 {
+    let mu_h = limb_mu(f);
+    let top = dot(persp_dir(f, px - vec2<f32>(0.0, 0.5)), f.cam_up) - mu_h;
+    let bottom = dot(persp_dir(f, px + vec2<f32>(0.0, 0.5)), f.cam_up) - mu_h;
+    return select(0.5, clamp(top / (top - bottom), 0.0, 1.0), abs(top - bottom) > 1e-9);
+}
+
 // Aerial haze transmittance over `dist` metres between altitudes h0 and h1: the haze's share of
 // the visibility's extinction (3.912 / V, Koschmieder, less the clear air's, frame.rs) at sea
 // level, thinning with a 1.5 km aerosol scale height (taken at the mean altitude). The clear
@@ -280,4 +317,18 @@ fn haze_transmittance(f: Frame, h0: f32, h1: f32, dist: f32) -> f32 {
     let hm = max(0.5 * (h0 + h1), 0.0);
     let beta = f.haze_beta * exp(-hm / 1500.0);
     return exp(-beta * dist);
+}
+
+// Narkowicz's fitted ACES curve: the present stage's tone curve.
+fn aces(x: vec3<f32>) -> vec3<f32> {
+    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+// The curve's inverse on 0..0.999 (the root of its quadratic that is 0 at 0).
+fn aces_inverse(y: vec3<f32>) -> vec3<f32> {
+    let v = clamp(y, vec3<f32>(0.0), vec3<f32>(0.999));
+    let a = 2.43 * v - 2.51;
+    let b = 0.59 * v - 0.03;
+    let c = 0.14 * v;
+    return (-b - sqrt(max(b * b - 4.0 * a * c, vec3<f32>(0.0)))) / (2.0 * a);
 }

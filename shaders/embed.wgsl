@@ -73,11 +73,6 @@ fn far_main(@builtin(global_invocation_id) id: vec3<u32>) {
 }
 
 
-// Narkowicz's fitted ACES curve (as present.wgsl).
-fn embed_aces(x: vec3<f32>) -> vec3<f32> {
-    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
-}
-
 // Whether two reaches belong to the same surface (within 5 %), so the resolve does not carry
 // cloud across the edge of the host's geometry.
 fn same_surface(a: f32, b: f32) -> bool {
@@ -116,14 +111,14 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         // Where the host drew nothing: the cloud over Stratus' sky, replacing the host's colour.
         var sky = (c.rgb + textureLoad(scene, at, 0).rgb * (1.0 - c.a)) * scale;
         if (p.tone != 0u) {
-            sky = embed_aces(sky);
+            sky = aces(sky);
         }
         return vec4<f32>(sky, 1.0);
     }
     var rgb = c.rgb * scale;
     if (p.tone != 0u) {
         // Tone-map the cloud's own colour, then weigh it by its opacity again (premultiplied).
-        rgb = embed_aces(rgb / max(c.a, 1e-4)) * c.a;
+        rgb = aces(rgb / max(c.a, 1e-4)) * c.a;
     }
     // Blend One, OneMinusSrcAlpha: out = cloud + (1 − a)·host.
     return vec4<f32>(rgb, c.a);

@@ -12,6 +12,9 @@
 // The farthest each pixel's ray may go (m), row-major at the output size: where a host's own
 // geometry hides what lies behind (render::embed, shaders/embed.wgsl); one huge value otherwise.
 @group(2) @binding(3) var<storage, read> ray_far: array<f32>;
+// The exposure the present stage last used (exposure.wgsl; 0 before the first frame): the limb's
+// rays are averaged as they will be seen (`shade_pixel`).
+@group(2) @binding(4) var<storage, read> shown_exposure: ExposureState;
 
 // This invocation's pixel's entry of ray_far.
 var<private> far_m: f32;
@@ -506,6 +509,59 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     return vec4<f32>(col, alpha);
 }
 
+// A pixel's cloud (premultiplied, opacity) and what lies behind it (`out_scene`), from one ray
+// through its centre, or where the Earth's limb crosses it from two: one in the middle of each
+// part (sky and sea), weighted by the part's share of the pixel, their pictures averaged as the
+// screen shows them (below).
+struct Shaded {
+    cloud: vec4<f32>,
+    scene: vec4<f32>,
+};
+
+fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
+    // One loop and one call site for both cases: a SIMD CPU driver runs every call site of the
+    // march for all its lanes.
+    let limb = !feature(FLAG_NO_SKY) && limb_side(f, px) == 0;
+    let rays = select(1u, 2u, limb);
+    // The part above the limb's crossing is `share` of the pixel's height, the other the rest.
+    let share = select(1.0, limb_share(f, px), limb);
+    var c = vec4<f32>(0.0);
+    var bg = vec3<f32>(0.0);
+    var shown = vec3<f32>(0.0);
+    var dist = 0.0;
+    // The exposure they will be shown at: a fixed one, else the last frame's adapted one (before
+    // any frame, the Sun's-height exposure adaptation starts from).
+    let adapted = !has_flag(f, FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
+    let e = max(select(f.exposure, shown_exposure.value, adapted), 1e-12);
+    for (var k = 0u; k < rays; k++) {
+        let w = select(share, 1.0 - share, k == 1u);
+        let y = select(0.5 * share - 0.5, 0.5 * share, k == 1u);
+        let r = make_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), limb));
+        let ck = march(r, fract(jitter + 0.5 * f32(k)));
+        c += w * ck;
+        if (!feature(FLAG_NO_SKY)) {
+            let b = background_at(r.d);
+            bg += w * b.rgb;
+            if (limb) {
+                shown += w * aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
+            }
+            dist += w * select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
+        }
+    }
+    if (limb && !feature(FLAG_NO_SKY)) {
+        // What the rays show, averaged as shown (after the tone curve, as a supersampled
+        // picture is), back in radiance: the cloud keeps its mean and the background takes the
+        // rest, so the present stage's bg·(1 − a) + c gives it. Averaged in radiance, a bright
+        // rim beside a dark sea came out brighter than its rays' mean on screen; and each ray's
+        // own background counts, not the mean background under the mean cloud, or a sky behind
+        // the rim's cloud shows through the sea's clear rays.
+        let want = aces_inverse(shown) / e;
+        c = vec4<f32>(min(c.rgb, want), c.a);
+        bg = select(bg, max(want - c.rgb, vec3<f32>(0.0)) / (1.0 - c.a), c.a < 0.9999);
+    }
+    return Shaded(c, vec4<f32>(bg, dist));
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     if (li < N_COUNTERS) {
@@ -527,15 +583,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         }
         local_count[C_RAYS] = 1u;
         far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
-        let r = make_ray(px);
-        let c = march(r, jitter);
-        textureStore(out_cloud, vec2<i32>(id.xy), c);
-        var scene = vec4<f32>(0.0);
-        if (!feature(FLAG_NO_SKY)) {
-            let bg = background_at(r.d);
-            scene = vec4<f32>(bg.rgb, select(bg.a, cloud_dist, c.a >= 0.5) * 1e-3);
-        }
-        textureStore(out_scene, vec2<i32>(id.xy), scene);
+        let s = shade_pixel(px, jitter);
+        textureStore(out_cloud, vec2<i32>(id.xy), s.cloud);
+        textureStore(out_scene, vec2<i32>(id.xy), s.scene);
         if (local_count[C_CUT] != 0u) {
             let i = id.y * cells.x + id.x;
             atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));

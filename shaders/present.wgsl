@@ -24,11 +24,6 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
-// Narkowicz's fitted ACES curve.
-fn aces(x: vec3<f32>) -> vec3<f32> {
-    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
-}
-
 // How much a march pixel counts in the upsample beside the nearest one: less as its opacity
 // (da) and its distance (km, 0 for sky) differ.
 fn edge_weight(da: f32, d: f32, near_d: f32) -> f32 {
@@ -111,15 +106,22 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             // thin layers otherwise show the jitter's lattice: a 3×3 kernel as wide as the
             // step's grain asks (common.wgsl `resolve_weights`). Not for the score's top-down
             // frames (a mask view, where a blur only moves edges).
+            // Not across the Earth's limb: a pixel the limb crosses is the mean of its own rays
+            // (march.wgsl `shade_pixel`), and the rows beside it show other things (sky, sea).
             let rw = resolve_weights(f.step_growth);
+            let side = limb_side(f, vec2<f32>(near_at) + 0.5);
             c = vec4<f32>(0.0);
+            var wsum = 0.0;
             for (var j = -1; j <= 1; j++) {
+                let same = side != 0 && limb_side(f, vec2<f32>(near_at + vec2<i32>(0, j)) + 0.5) == side;
                 for (var i = -1; i <= 1; i++) {
+                    let w = select(0.0, resolve_weight(rw, i, j), same || (i == 0 && j == 0));
                     let t = textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
-                    c += resolve_weight(rw, i, j) * t;
+                    c += w * t;
+                    wsum += w;
                 }
             }
-            c /= rw.x + 4.0 * (rw.y + rw.z);
+            c /= wsum;
         } else {
             c = textureLoad(cloud, near_at, 0);
         }

@@ -169,6 +169,8 @@ pub mod flags {
     pub const BLEND: u32 = 1024;
     /// The map holds cumulus: its columns are cells (render::cells).
     pub const CELLS: u32 = 2048;
+    /// The exposure is fixed (`Frame.exposure` is what the present stage shows at), not adapted.
+    pub const FIXED_EXPOSURE: u32 = 4096;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -435,6 +437,7 @@ fn lights(u: &mut FrameUniforms, sky: &Sky, s: &Settings, exposure_base: f64) {
     let base = if s.exposure_auto {
         exposure_base
     } else {
+        u.flags |= flags::FIXED_EXPOSURE;
         FIXED_EXPOSURE
     };
     u.exposure = (base * 2f64.powf(s.exposure_ev)) as f32;

@@ -70,6 +70,9 @@ pub const BINDINGS: &[Binding] = &[
     // The farthest each pixel's ray may go (m): a host's depth (render::embed), else one huge
     // value ([`MarchPass::unlimited`]).
     b(GROUP_TARGET, 3, Resource::StorageRead),
+    // The exposure the present stage last showed (render::exposure): the limb's rays are
+    // averaged as they will be seen.
+    b(GROUP_TARGET, 4, Resource::StorageRead),
 ];
 
 /// Every binding of march.wgsl with the scene's group (render::scene) that it shares.
@@ -246,14 +249,15 @@ impl MarchPass {
     }
 
     /// The output's bind group: made again only when the output size changes. `far`: each
-    /// pixel's farthest reach (m), or [`MarchPass::unlimited`].
+    /// pixel's farthest reach (m), or [`MarchPass::unlimited`]; `exposure`: the exposure
+    /// stage's state (render::exposure::ExposurePass::state).
     pub fn bind_target(
         &self,
         gpu: &Gpu,
-        cloud: &wgpu::TextureView,
-        scene: &wgpu::TextureView,
+        (cloud, scene): (&wgpu::TextureView, &wgpu::TextureView),
         cut_mask: &wgpu::Buffer,
         far: &wgpu::Buffer,
+        exposure: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         bind(
             &gpu.device,
@@ -264,6 +268,7 @@ impl MarchPass {
                 wgpu::BindingResource::Buffer(cut_mask.as_entire_buffer_binding()),
                 wgpu::BindingResource::TextureView(scene),
                 wgpu::BindingResource::Buffer(far.as_entire_buffer_binding()),
+                wgpu::BindingResource::Buffer(exposure.as_entire_buffer_binding()),
             ],
         )
     }

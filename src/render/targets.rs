@@ -35,7 +35,9 @@ impl FrameSet {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (cv, sv) = (view(&cloud), view(&scene));
         FrameSet {
-            march_bind: r.march.bind_target(r.gpu, &cv, &sv, cut_mask, far),
+            march_bind: r
+                .march
+                .bind_target(r.gpu, (&cv, &sv), cut_mask, far, &r.exposure.state),
             present_bind: r.present.bind_target(r.gpu, &cv, &sv),
             exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
             cloud,
@@ -126,9 +128,13 @@ impl History {
         History {
             n,
             // A subset march's pixels are full-size pixels: the same reach per pixel.
-            fresh_march_bind: r
-                .march
-                .bind_target(r.gpu, &fresh[0], &fresh[1], cut_mask, far),
+            fresh_march_bind: r.march.bind_target(
+                r.gpu,
+                (&fresh[0], &fresh[1]),
+                cut_mask,
+                far,
+                &r.exposure.state,
+            ),
             cells,
             other,
             reproject_bind,
