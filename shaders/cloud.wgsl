@@ -476,16 +476,18 @@ fn raised_cosine_mean(u: f32, w: f32) -> f32 {
     return ((b - a) - (sin(6.2831853 * b) - sin(6.2831853 * a)) / 6.2831853) / w;
 }
 
-// Where a view ray's cone is 4 km wide or more a cumulonimbus cluster is drawn as its mean:
+// Where a view ray's cone is 1.5 km wide or more a cumulonimbus cluster is drawn as its mean:
 // straight down from a map pixel (the score's rays, 6-14 km on the random draws' 2.5° maps) a
 // tower's trunk or anvil filled a 4×4 block of pixels or missed it, and the block's opacity
 // followed where the towers happen to stand, not the forecast's coverage; the towers' places
 // are Stratus' own, finer than any GFS grid. A switch, not a blend: blended as densities, the
 // towers' opaque cores stayed opaque under the slab and a half-faded field came out more
-// opaque than its coverage (0.53 at coverage 0.375, 5.5 km rays). By the cone alone (cone_m),
-// not the step: at 320×180 and a 60° field a 4 km cone is 620 km away, past the haze's cut-off
-// at the default 60 km visibility.
-const TOWER_MEAN_FROM_M: f32 = 4000.0;
+// opaque than its coverage (0.53 at coverage 0.375, 5.5 km rays). From 1.5 km, not 4: on the
+// 0.25° maps' 2 km map pixels the towers still decided the blocks (a random draw, 500 hPa over
+// Poland, Dice 0.944; 0.978 so; docs/footprint.md). By the cone alone (cone_m), not the step: a
+// 1.5 km cone is 350 km away at 480×270 and a 60° field, past the haze's cut-off at the default
+// 60 km visibility, and 232 km away in the ¼ window's 320×180 march.
+const TOWER_MEAN_FROM_M: f32 = 1500.0;
 fn tower_fade() -> f32 {
     return select(0.0, 1.0, cone_m >= TOWER_MEAN_FROM_M);
 }
