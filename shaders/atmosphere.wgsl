@@ -7,7 +7,6 @@
 // at 32 distances, the aerial perspective of ground and cloud. Earth's shadow comes out of the
 // transmittance: a point of air the Earth hides from the Sun scatters none of its light.
 
-@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var lut_out: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(0) var trans_lut: texture_2d<f32>;
 @group(2) @binding(1) var ms_lut: texture_2d<f32>;
@@ -217,7 +216,7 @@ struct SkyRay {
 fn sky_ray(uv: vec2<f32>) -> SkyRay {
     var r: SkyRay;
     r.h = clamp(f.cam_alt_m, 0.0, ATMO_TOP_M - 1.0);
-    let frame = sky_frame(f);
+    let frame = sky_frame();
     let az = (uv.x - 0.5) * 2.0 * PI;
     let el = sky_elev_from_v(uv.y, r.h);
     r.v = normalize(f.cam_up * sin(el) + (frame[0] * cos(az) + frame[1] * sin(az)) * cos(el));

@@ -1,7 +1,7 @@
 // Cloud density, shared by the stages that evaluate the march's cloud (prepended after
-// common.wgsl): the device's and the map's bindings (groups 0 and 1, render::march's table),
-// the weather lookup, the paper's layer density (DESIGN §2) and the genus columns (DESIGN §7).
-@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
+// common.wgsl and frame.wgsl, which binds the frame): the device's other bindings and the
+// map's (groups 0 and 1, render::march's table), the weather lookup, the paper's layer density
+// (DESIGN §2) and the genus columns (DESIGN §7).
 @group(0) @binding(1) var shape_tex: texture_3d<f32>;    // shape noise statistics (mean, variance), mipped
 @group(0) @binding(2) var detail_tex: texture_3d<f32>;   // detail noise statistics, mipped
 @group(0) @binding(3) var clamp_lin: sampler;
@@ -115,7 +115,7 @@ fn feature(bit: u32) -> bool {
     if (FIXED_FEATURES) {
         return (FEATURES & bit) != 0u;
     }
-    return has_flag(f, bit);
+    return has_flag(bit);
 }
 
 struct Sample {
@@ -626,7 +626,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
 // Map uv of a sample (negative u outside the region): one lat/lon per step, shared by the
 // coarse-map test and the weather lookup (on a CPU driver the step's fixed cost dominates).
 fn sample_uv(pos: vec3<f32>) -> vec2<f32> {
-    return region_uv(f, lat_lon(pos));
+    return region_uv(lat_lon(pos));
 }
 
 fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
@@ -659,7 +659,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
     }
     let s = weather_at(uv);
     sample_cm = s.cm;
-    let cull = has_flag(f, FLAG_CULL);
+    let cull = has_flag(FLAG_CULL);
     if (!s.inside) {
         if (cull) {
             return 0.0;

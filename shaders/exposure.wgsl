@@ -5,7 +5,6 @@
 // (as snow does), and dusk and night stay dark (no opening up once the Sun is down; DESIGN §8).
 // One workgroup.
 
-@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var cloud: texture_2d<f32>;
 @group(1) @binding(1) var scene: texture_2d<f32>;    // the background behind it (march.wgsl)
 @group(2) @binding(0) var<storage, read_write> exposure: ExposureState;
@@ -44,7 +43,7 @@ fn main(@builtin(local_invocation_index) li: u32) {
     if (li == 0u) {
         let log_mean = sums[0] / f32(METER * METER);
         exposure.metered = log_mean;
-        if (ep.auto_on == 0u || has_flag(f, FLAG_NO_SKY)) {
+        if (ep.auto_on == 0u || has_flag(FLAG_NO_SKY)) {
             exposure.value = f.exposure;
             exposure.adapted = f.exposure / ep.ev_mul;
             return;

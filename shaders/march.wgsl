@@ -50,7 +50,7 @@ fn make_ray(px: vec2<f32>) -> Ray {
         r.cone0 = (f.region_north - f.region_south) / size.y * 111195.0;
         r.cone = 0.0;
     } else {
-        r.d = persp_dir(f, px);
+        r.d = persp_dir(px);
         r.up = f.cam_up;
         r.h = f.cam_alt_m;
         r.np = f.noise_origin;
@@ -245,8 +245,8 @@ fn start_walk(span: Segments, jitter: f32) -> Walk {
 // Walk on to the ray's next sample with cloud, looking up density only: true with the sample
 // in the walk's sigma, dt, uv and h; false when the march is over (`finished`: it ended).
 fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jitter: f32) -> bool {
-    let skip = has_flag(f, FLAG_SKIP);
-    let may_stride = has_flag(f, FLAG_STRIDE);
+    let skip = has_flag(FLAG_SKIP);
+    let may_stride = has_flag(FLAG_STRIDE);
     // The score's top-down columns stride at most 2×: there a wisp jumped over is a mask pixel
     // lost (at 4× the top-down RGB error against reference rose from 0.006 to 0.023).
     let max_mult = select(4.0, 2.0, feature(FLAG_NO_SKY));
@@ -382,7 +382,7 @@ struct ViewPhase {
 // DESIGN §8). `tr`: the view ray's transmittance so far (fewer light steps behind opaque cloud).
 fn light_in(r: Ray, origin: vec3<f32>, t: f32, h: f32, uv: vec2<f32>, tr: f32, view: ViewPhase) -> vec3<f32> {
     let no_sky = feature(FLAG_NO_SKY);
-    let lod = has_flag(f, FLAG_LIGHT_LOD);
+    let lod = has_flag(FLAG_LIGHT_LOD);
     let sun_key = f.sun_is_key != 0u;
     let n_light = f.light_steps;
     let g = f.hg_g;
@@ -391,7 +391,7 @@ fn light_in(r: Ray, origin: vec3<f32>, t: f32, h: f32, uv: vec2<f32>, tr: f32, v
     let up = normalize(pos);
     var key = select(f.moon_dir, f.sun_dir, sun_key);
     var key_col = select(f.moon_col, f.sun_col, sun_key);
-    var ambient = sky_radiance(f, up, up);
+    var ambient = sky_radiance(up, up);
     if (no_sky) {
         key = up;
         key_col = vec3<f32>(1.0);
@@ -442,7 +442,7 @@ fn through_air(r: Ray, mu: f32, cloud: vec3<f32>, alpha: f32, dist: f32) -> vec3
     let air = haze_light();
     let ap = aerial(r.d, dist);
     col = col * ap.a + ap.rgb * air * alpha;
-    let fog = haze_transmittance(f, r.h, altitude_at(r.h, mu, dist), dist);
+    let fog = haze_transmittance(r.h, altitude_at(r.h, mu, dist), dist);
     let haze = sky_seen(r.d) * air;
     col = col * fog + haze * alpha * (1.0 - fog);
     return col;
@@ -521,17 +521,17 @@ struct Shaded {
 fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     // One loop and one call site for both cases: a SIMD CPU driver runs every call site of the
     // march for all its lanes.
-    let limb = !feature(FLAG_NO_SKY) && limb_side(f, px) == 0;
+    let limb = !feature(FLAG_NO_SKY) && limb_side(px) == 0;
     let rays = select(1u, 2u, limb);
     // The part above the limb's crossing is `share` of the pixel's height, the other the rest.
-    let share = select(1.0, limb_share(f, px), limb);
+    let share = select(1.0, limb_share(px), limb);
     var c = vec4<f32>(0.0);
     var bg = vec3<f32>(0.0);
     var shown = vec3<f32>(0.0);
     var dist = 0.0;
     // The exposure they will be shown at: a fixed one, else the last frame's adapted one (before
     // any frame, the Sun's-height exposure adaptation starts from).
-    let adapted = !has_flag(f, FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
+    let adapted = !has_flag(FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
     let e = max(select(f.exposure, shown_exposure.value, adapted), 1e-12);
     for (var k = 0u; k < rays; k++) {
         let w = select(share, 1.0 - share, k == 1u);
@@ -548,7 +548,7 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
             dist += w * select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
         }
     }
-    if (limb && !feature(FLAG_NO_SKY)) {
+    if (limb) {
         // What the rays show, averaged as shown (after the tone curve, as a supersampled
         // picture is), back in radiance: the cloud keeps its mean and the background takes the
         // rest, so the present stage's bg·(1 − a) + c gives it. Averaged in radiance, a bright
@@ -576,7 +576,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         let pix = min(id.xy * n + vec2<u32>(f.subset_offset), full - 1u);
         let px = vec2<f32>(pix) + 0.5;
         var jitter = 0.5;
-        if (has_flag(f, FLAG_JITTER)) {
+        if (has_flag(FLAG_JITTER)) {
             // Interleaved gradient noise (Jimenez 2014), shifted per frame.
             let q = px + vec2<f32>(5.588238 * f.frame_index);
             jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));

@@ -2,7 +2,6 @@
 // (scene.wgsl: sky, Sun, Moon, stars, the ground in the clouds' shadows), applies the exposure
 // stage's exposure and a filmic tone curve; the sRGB target encodes.
 
-@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(1) @binding(0) var cloud: texture_2d<f32>;    // the march output; lives with its size
 // The background behind it and each pixel's distance in km (march.wgsl `out_scene`).
 @group(1) @binding(1) var scene: texture_2d<f32>;
@@ -100,7 +99,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         bg = acc.b / max(acc.bw, 1e-6);
     } else {
         bg = textureLoad(scene, near_at, 0).rgb;
-        if (has_flag(f, FLAG_JITTER) && !has_flag(f, FLAG_NO_SKY)) {
+        if (has_flag(FLAG_JITTER) && !has_flag(FLAG_NO_SKY)) {
             // Resolve the march's interleaved-gradient jitter, which spreads its values evenly
             // over every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and
             // thin layers otherwise show the jitter's lattice: a 3×3 kernel as wide as the
@@ -109,13 +108,15 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             // Not across the Earth's limb: a pixel the limb crosses is the mean of its own rays
             // (march.wgsl `shade_pixel`), and the rows beside it show other things (sky, sea).
             let rw = resolve_weights(f.step_growth);
-            let side = limb_side(f, vec2<f32>(near_at) + 0.5);
+            let rows = limb_rows(vec2<f32>(near_at) + 0.5);
             c = vec4<f32>(0.0);
             var wsum = 0.0;
             for (var j = -1; j <= 1; j++) {
-                let same = side != 0 && limb_side(f, vec2<f32>(near_at + vec2<i32>(0, j)) + 0.5) == side;
+                // Picked by select, not indexed: a vector indexed by a loop variable can go
+                // through memory on a GPU.
+                let row = select(select(rows.z, rows.y, j == 0), rows.x, j < 0);
                 for (var i = -1; i <= 1; i++) {
-                    let w = select(0.0, resolve_weight(rw, i, j), same || (i == 0 && j == 0));
+                    let w = resolve_weight(rw, i, j) * select(row, 1.0, i == 0 && j == 0);
                     let t = textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
                     c += w * t;
                     wsum += w;

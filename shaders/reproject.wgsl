@@ -4,7 +4,6 @@
 // no longer fits (off the last frame, disoccluded, a large change of distance, past the
 // region's edge) is rejected and the fresh subset, upsampled, stands in for it.
 
-@group(0) @binding(0) var<storage, read> f: Frame;   // storage: see render::contract::frame
 @group(0) @binding(1) var<storage, read> rp: Reproject;   // storage: see render::contract::params
 @group(0) @binding(2) var lin: sampler;
 // This frame's subset march: one texel per cell (march.wgsl's cloud and scene).
@@ -119,7 +118,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (rp.valid != 0u) {
         // The point this pixel shows, at the distance of the fresh sample nearest to it (sky:
         // a direction, infinitely far), seen from the previous camera.
-        let d = persp_dir(f, vec2<f32>(p) + 0.5);
+        let d = persp_dir(vec2<f32>(p) + 0.5);
         var v = d;
         var expect_km = 0.0;
         if (near_scene.a > 0.0) {
@@ -157,7 +156,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 var in_region = true;
                 if (expect_km > 0.0) {
                     let at = f.cam_up * (EARTH_R + f.cam_alt_m) + d * (near_scene.a * 1000.0);
-                    in_region = region_uv(f, lat_lon(at)).x >= 0.0;
+                    in_region = region_uv(lat_lon(at)).x >= 0.0;
                 }
                 if (same_kind && in_region && change <= rp.max_depth_change) {
                     let hc = textureSampleLevel(hist_cloud, lin, uv, 0.0);

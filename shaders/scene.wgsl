@@ -21,7 +21,7 @@ fn column_od(pos: vec3<f32>, h: f32) -> vec2<f32> {
     if (sh.enabled == 0u) {
         return vec2<f32>(0.0);
     }
-    let uv = region_uv(f, lat_lon(pos));
+    let uv = region_uv(lat_lon(pos));
     let w = (h - sh.bottom_m) / max(sh.top_m - sh.bottom_m, 1.0);
     if (uv.x < 0.0 || w >= 1.0) {
         return vec2<f32>(0.0);
@@ -90,7 +90,7 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
         let x = (f32(i) + 1.0) / f32(TERRAIN_STEPS);
         let t = t0 + (t1 - t0) * x * x;
         let p = o + d * t;
-        if (altitude_at(h, mu, t) <= ground_at(region_uv(f, lat_lon(p))).x) {
+        if (altitude_at(h, mu, t) <= ground_at(region_uv(lat_lon(p))).x) {
             lo = prev;
             hit = t;
             break;
@@ -103,7 +103,7 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
     for (var k = 0u; k < TERRAIN_REFINE; k++) {
         let t = 0.5 * (lo + hit);
         let p = o + d * t;
-        if (altitude_at(h, mu, t) <= ground_at(region_uv(f, lat_lon(p))).x) {
+        if (altitude_at(h, mu, t) <= ground_at(region_uv(lat_lon(p))).x) {
             hit = t;
         } else {
             lo = t;
@@ -121,9 +121,9 @@ fn terrain_normal(p: vec3<f32>) -> vec3<f32> {
     let east = normalize(vec3<f32>(-n.y, n.x, 0.0) + vec3<f32>(1e-9, 0.0, 0.0));
     let north = cross(n, east);
     let step = 2000.0;
-    let h0 = ground_at(region_uv(f, lat_lon(p))).x;
-    let he = ground_at(region_uv(f, lat_lon(p + east * step))).x;
-    let hn = ground_at(region_uv(f, lat_lon(p + north * step))).x;
+    let h0 = ground_at(region_uv(lat_lon(p))).x;
+    let he = ground_at(region_uv(lat_lon(p + east * step))).x;
+    let hn = ground_at(region_uv(lat_lon(p + north * step))).x;
     return normalize(n * step - east * (he - h0) - north * (hn - h0));
 }
 
@@ -176,7 +176,7 @@ fn disc(v: vec3<f32>, dir: vec3<f32>, radius_rad: f32) -> f32 {
 // Where direction v falls in the sky-view table.
 fn sky_view_uv(v: vec3<f32>) -> vec2<f32> {
     let up = f.cam_up;
-    let fr = sky_frame(f);
+    let fr = sky_frame();
     let el = asin(clamp(dot(v, up), -1.0, 1.0));
     let eh = horizon_elev(f.cam_alt_m);
     var y = 0.0;
@@ -210,7 +210,7 @@ fn aerial(v: vec3<f32>, d: f32) -> vec4<f32> {
 // twilight's sky lights the ground as brightly as it is drawn.
 fn sky_ambient() -> vec3<f32> {
     let up = f.cam_up;
-    let fr = sky_frame(f);
+    let fr = sky_frame();
     var l = sky_seen(up);
     for (var k = 0u; k < 4u; k++) {
         let a = f32(k) * 0.5 * PI + 0.25 * PI;
@@ -223,7 +223,7 @@ fn sky_ambient() -> vec3<f32> {
 // shadow and all), the night's moonlit sky and airglow over it.
 fn sky_seen(v: vec3<f32>) -> vec3<f32> {
     let day = textureSampleLevel(sky_tex, od_sampler, sky_view_uv(v), 0.0).rgb;
-    return day + night_sky(f, v, f.cam_up);
+    return day + night_sky(v, f.cam_up);
 }
 
 // How much of the clear sky's light the haze around the camera gets: the key light and the sky
@@ -274,13 +274,13 @@ fn background_at(v: vec3<f32>) -> vec4<f32> {
         // Ground: its albedo under Sun and sky through the clouds, fading into the haze.
         let t = t_ground;
         let p = o + v * t;
-        let g = ground_at(region_uv(f, lat_lon(p)));
+        let g = ground_at(region_uv(lat_lon(p)));
         let n = terrain_normal(p);
         // The air's light (the table's, for a clear sky) and the haze's, both dimmed under cloud.
         let air = haze_light();
         let ap = aerial(v, t);
         let lit = g.yzw * ground_irradiance(p, n, g.x, sky_ambient()) * ap.a + ap.rgb * air;
-        let fog = haze_transmittance(f, h, g.x, t);
+        let fog = haze_transmittance(h, g.x, t);
         return vec4<f32>(lit * fog + sky_seen(v) * air * (1.0 - fog), t);
     }
     var c = sky_seen(v);

@@ -12,35 +12,42 @@ pub const NOISE_STATS: &str = concat!(
 );
 pub const MARCH: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/march.wgsl")
 );
 pub const SHADOW: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/shadow.wgsl")
 );
 pub const ATMOSPHERE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/atmosphere.wgsl")
 );
 pub const EXPOSURE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/exposure.wgsl")
 );
 pub const SECTION: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/cloud.wgsl"),
     include_str!("../../shaders/section.wgsl")
 );
 pub const REPROJECT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/reproject.wgsl")
 );
 pub const PRESENT: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/fullscreen.wgsl"),
     include_str!("../../shaders/present.wgsl")
