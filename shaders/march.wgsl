@@ -509,10 +509,35 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
     return vec4<f32>(col, alpha);
 }
 
+// Where a mountain's silhouette crosses the pixel at px, the share of its height above the
+// crossing; 1 where none does (its top and bottom rays both meet the terrain or both pass).
+// Found by bisecting the pixel's middle column three times.
+fn terrain_share(px: vec2<f32>) -> f32 {
+    if (sh.terrain_on == 0u) {
+        return 1.0;
+    }
+    let top = meets_terrain(persp_dir(px - vec2<f32>(0.0, 0.5)));
+    if (top || !meets_terrain(persp_dir(px + vec2<f32>(0.0, 0.5)))) {
+        return 1.0;
+    }
+    var lo = 0.0;
+    var hi = 1.0;
+    for (var k = 0; k < 3; k++) {
+        let m = 0.5 * (lo + hi);
+        if (meets_terrain(persp_dir(px + vec2<f32>(0.0, m - 0.5)))) {
+            hi = m;
+        } else {
+            lo = m;
+        }
+    }
+    return 0.5 * (lo + hi);
+}
+
 // A pixel's cloud (premultiplied, opacity) and what lies behind it (`out_scene`), from one ray
-// through its centre, or where the Earth's limb crosses it from two: one in the middle of each
-// part (sky and sea), weighted by the part's share of the pixel, their pictures averaged as the
-// screen shows them (below).
+// through its centre, or where the Earth's limb or a mountain's silhouette crosses it from two:
+// one in the middle of each part (sky and sea, or what lies past the ridge and the rock),
+// weighted by the part's share of the pixel, their pictures averaged as the screen shows them
+// (below).
 struct Shaded {
     cloud: vec4<f32>,
     scene: vec4<f32>,
@@ -522,9 +547,14 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     // One loop and one call site for both cases: a SIMD CPU driver runs every call site of the
     // march for all its lanes.
     let limb = !feature(FLAG_NO_SKY) && limb_side(px) == 0;
-    let rays = select(1u, 2u, limb);
-    // The part above the limb's crossing is `share` of the pixel's height, the other the rest.
-    let share = select(1.0, limb_share(px), limb);
+    // The part above the limb's or a silhouette's crossing is `share` of the pixel's height,
+    // the other the rest.
+    var share = select(1.0, limb_share(px), limb);
+    if (!limb && !feature(FLAG_NO_SKY)) {
+        share = terrain_share(px);
+    }
+    let split = limb || share < 1.0;
+    let rays = select(1u, 2u, split);
     var c = vec4<f32>(0.0);
     var bg = vec3<f32>(0.0);
     var shown = vec3<f32>(0.0);
@@ -536,19 +566,19 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     for (var k = 0u; k < rays; k++) {
         let w = select(share, 1.0 - share, k == 1u);
         let y = select(0.5 * share - 0.5, 0.5 * share, k == 1u);
-        let r = make_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), limb));
+        let r = make_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), split));
         let ck = march(r, fract(jitter + 0.5 * f32(k)));
         c += w * ck;
         if (!feature(FLAG_NO_SKY)) {
             let b = background_at(r.d);
             bg += w * b.rgb;
-            if (limb) {
+            if (split) {
                 shown += w * aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
             }
             dist += w * select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
         }
     }
-    if (limb) {
+    if (split) {
         // What the rays show, averaged as shown (after the tone curve, as a supersampled
         // picture is), back in radiance: the cloud keeps its mean and the background takes the
         // rest, so the present stage's bg·(1 − a) + c gives it. Averaged in radiance, a bright

@@ -98,7 +98,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         c = acc.c / max(acc.wsum, 1e-6);
         bg = acc.b / max(acc.bw, 1e-6);
     } else {
-        bg = textureLoad(scene, near_at, 0).rgb;
+        let own = textureLoad(scene, near_at, 0);
+        bg = own.rgb;
         if (has_flag(FLAG_JITTER) && !has_flag(FLAG_NO_SKY)) {
             // Resolve the march's interleaved-gradient jitter, which spreads its values evenly
             // over every 3×3 block (Jimenez 2014): a still frame has no temporal filter, and
@@ -107,8 +108,14 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             // frames (a mask view, where a blur only moves edges).
             // Not across the Earth's limb: a pixel the limb crosses is the mean of its own rays
             // (march.wgsl `shade_pixel`), and the rows beside it show other things (sky, sea).
+            // Nor across ground's silhouette (a mountain's edge against the cloud or sky past
+            // it): there the blend drew the far deck a pixel down over the rock. A pixel shows
+            // ground where its cloud is under half opaque and its distance (the scene texture's
+            // w, the ground's there) is not 0 (sky); a neighbour past that ground, or sky, is
+            // not blended with it, either way round.
             let rw = resolve_weights(f.step_growth);
             let rows = limb_rows(vec2<f32>(near_at) + 0.5);
+            let own_ground = textureLoad(cloud, near_at, 0).a < 0.5 && own.a > 0.0;
             c = vec4<f32>(0.0);
             var wsum = 0.0;
             for (var j = -1; j <= 1; j++) {
@@ -116,8 +123,13 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
                 // through memory on a GPU.
                 let row = select(select(rows.z, rows.y, j == 0), rows.x, j < 0);
                 for (var i = -1; i <= 1; i++) {
-                    let w = resolve_weight(rw, i, j) * select(row, 1.0, i == 0 && j == 0);
-                    let t = textureLoad(cloud, clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1), 0);
+                    let at = clamp(near_at + vec2<i32>(i, j), vec2<i32>(0), dims - 1);
+                    let t = textureLoad(cloud, at, 0);
+                    let d = textureLoad(scene, at, 0).a;
+                    let past_own = own_ground && (d <= 0.0 || d > 1.25 * own.a);
+                    let past_it = t.a < 0.5 && d > 0.0 && (own.a <= 0.0 || own.a > 1.25 * d);
+                    let across = past_own || past_it;
+                    let w = resolve_weight(rw, i, j) * select(row, 1.0, i == 0 && j == 0) * select(1.0, 0.0, across);
                     c += w * t;
                     wsum += w;
                 }

@@ -112,6 +112,20 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
     return hit;
 }
 
+// Whether the camera's ray along v meets the terrain before the sea: which side of a
+// mountain's silhouette it passes (march.wgsl `terrain_share`).
+fn meets_terrain(v: vec3<f32>) -> bool {
+    let up = f.cam_up;
+    let h = f.cam_alt_m;
+    let mu = dot(v, up);
+    let ground = shell_hits(h, mu, 0.0);
+    var t_far = 2.0e6;
+    if (ground.x <= ground.y && ground.y > 0.0) {
+        t_far = max(ground.x, 0.0);
+    }
+    return terrain_hit(up * (EARTH_R + h), h, mu, v, t_far) >= 0.0;
+}
+
 // The terrain's normal at p from the height field's slope over about a kilometre.
 fn terrain_normal(p: vec3<f32>) -> vec3<f32> {
     let n = normalize(p);
