@@ -112,18 +112,25 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
     return hit;
 }
 
-// Whether the camera's ray along v meets the terrain before the sea: which side of a
-// mountain's silhouette it passes (march.wgsl `terrain_share`).
-fn meets_terrain(v: vec3<f32>) -> bool {
+// Along v from the camera: x the distance to sea level (-1 where the ray misses the Earth), y
+// to the terrain before it (-1 where it meets none).
+fn ground_reach(v: vec3<f32>) -> vec2<f32> {
     let up = f.cam_up;
     let h = f.cam_alt_m;
     let mu = dot(v, up);
     let ground = shell_hits(h, mu, 0.0);
-    var t_far = 2.0e6;
+    var t_sea = -1.0;
     if (ground.x <= ground.y && ground.y > 0.0) {
-        t_far = max(ground.x, 0.0);
+        t_sea = max(ground.x, 0.0);
     }
-    return terrain_hit(up * (EARTH_R + h), h, mu, v, t_far) >= 0.0;
+    let t_far = select(2.0e6, t_sea, t_sea >= 0.0);
+    return vec2<f32>(t_sea, terrain_hit(up * (EARTH_R + h), h, mu, v, t_far));
+}
+
+// Whether the camera's ray along v meets the terrain before the sea: which side of a
+// mountain's silhouette it passes (march.wgsl `terrain_share`).
+fn meets_terrain(v: vec3<f32>) -> bool {
+    return ground_reach(v).y >= 0.0;
 }
 
 // The terrain's normal at p from the height field's slope over about a kilometre.
@@ -274,16 +281,8 @@ fn background_at(v: vec3<f32>) -> vec4<f32> {
     let h = f.cam_alt_m;
     let mu = dot(v, up);
     let o = up * (EARTH_R + h);
-    let ground = shell_hits(h, mu, 0.0);
-    var t_ground = -1.0;
-    if (ground.x <= ground.y && ground.y > 0.0) {
-        t_ground = max(ground.x, 0.0);
-    }
-    let t_far = select(2.0e6, t_ground, t_ground >= 0.0);
-    let t_terrain = terrain_hit(o, h, mu, v, t_far);
-    if (t_terrain >= 0.0) {
-        t_ground = t_terrain;
-    }
+    let reach = ground_reach(v);
+    let t_ground = select(reach.x, reach.y, reach.y >= 0.0);
     if (t_ground >= 0.0) {
         // Ground: its albedo under Sun and sky through the clouds, fading into the haze.
         let t = t_ground;
