@@ -114,7 +114,11 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             // w, the ground's there) is not 0 (sky); a neighbour past that ground, or sky, is
             // not blended with it, either way round.
             let rw = resolve_weights(f.step_growth);
-            let rows = limb_rows(vec2<f32>(near_at) + 0.5);
+            // Along its row only where the pixel grazes (frame.wgsl `grazing`): its rays down
+            // the pixel resolve the deck's edge, and a blend with the rows above and below
+            // drew the edge's bright line across three rows.
+            let mid = vec2<f32>(near_at) + 0.5;
+            let rows = select(limb_rows(mid), vec3<f32>(0.0, 1.0, 0.0), has_flag(FLAG_GRAZE) && grazing(mid));
             let own_ground = textureLoad(cloud, near_at, 0).a < 0.5 && own.a > 0.0;
             c = vec4<f32>(0.0);
             var wsum = 0.0;

@@ -586,7 +586,11 @@ fn against_twin(sample: stratus::scenes::Sample, name: &str, ev: f64) -> (usize,
     let map = sample.map().expect("the sample ingests");
     let scene = sample.scene(name).expect("the bench's scene");
     let mut s = settings();
-    s.time = scene.time.expect("the scene has its time");
+    // A scene without its own time is seen at the map's valid time, as the bench sees it.
+    s.time = scene
+        .time
+        .or(map.meta.source.valid_time)
+        .expect("the scene or its map has a time");
     s.exposure_auto = false;
     s.exposure_ev = ev;
     let (w, h) = (160, 90);
@@ -628,5 +632,19 @@ fn a_mountain_silhouette_shows_what_its_pixels_cover() {
     assert!(
         worst < 0.037 && whole < 0.0047,
         "the silhouette's row differs from its supersampled twin: row {row} RMSE {worst:.4}, whole {whole:.4}"
+    );
+}
+
+/// The same for a far deck's top seen edge-on (the bench's inside-layer scene from 4.5 km: the
+/// rows just under the horizontal): a pixel whose ray grazes the layers takes two rays down its
+/// height, four where those disagree (march.wgsl `shade_pixel`), and the resolve blends it only
+/// along its row. Before (one ray, the resolve across rows): the deck's row at RMSE 0.029, the
+/// picture at 0.0049; now 0.013 and 0.0028 (lavapipe, 160×90).
+#[test]
+fn a_grazing_deck_top_shows_what_its_pixels_cover() {
+    let (row, worst, whole) = against_twin(stratus::scenes::synthetic(), "inside-layer", -0.18);
+    assert!(
+        worst < 0.02 && whole < 0.0038,
+        "the deck's row differs from its supersampled twin: row {row} RMSE {worst:.4}, whole {whole:.4}"
     );
 }

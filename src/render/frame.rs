@@ -171,6 +171,9 @@ pub mod flags {
     pub const CELLS: u32 = 2048;
     /// The exposure is fixed (`Frame.exposure` is what the present stage shows at), not adapted.
     pub const FIXED_EXPOSURE: u32 = 4096;
+    /// Pixels whose rays graze the layers (between the sea's limb and just above the
+    /// horizontal) take up to four rays down their height (`MarchParams::graze`).
+    pub const GRAZE: u32 = 8192;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -272,6 +275,7 @@ fn march_flags(p: &MarchParams) -> u32 {
         (sc.jitter, flags::JITTER),
         (sc.light_lod, flags::LIGHT_LOD),
         (sc.clear_stride, flags::STRIDE),
+        (p.graze, flags::GRAZE),
     ]
     .into_iter()
     .filter(|(on, _)| *on)
