@@ -204,12 +204,16 @@ var<private> footprint_scale: f32 = 1.0;
 // (cumulus_slab, anvil_slab) are averaged over it: a far step of 1-1.5 km is longer than a
 // slab is thick, and one point of the slab's profile in it stood for the whole step.
 var<private> step_dz: f32 = 0.0;
-// The coverage of the column (or band) the last density look-up stood in, 0 outside every
-// one: the march strides through clear air only where cloud is sparse (march.wgsl).
-var<private> sample_cover: f32 = 0.0;
-// Each layer's coverage where the last density look-up stood (0 outside the shells): the
-// stride's test for layers ahead (envelope_overlaps).
-var<private> sample_cm: vec3<f32> = vec3<f32>(0.0);
+// What the last density look-up found of the map where it stood, for the march's stride.
+struct LastSample {
+    // The coverage of the column (or band) it stood in, 0 outside every one: the march strides
+    // through clear air only where cloud is sparse (march.wgsl).
+    cover: f32,
+    // Each layer's coverage there (0 outside the shells): the stride's test for layers ahead
+    // (envelope_overlaps).
+    cm: vec3<f32>,
+};
+var<private> last_sample: LastSample = LastSample(0.0, vec3<f32>(0.0));
 // Texels per side of the shape and detail noise (render::noise::SHAPE_SIZE, DETAIL_SIZE).
 const SHAPE_TEXELS: f32 = 128.0;
 const DETAIL_TEXELS: f32 = 32.0;
@@ -568,7 +572,7 @@ fn column_density(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool, s: Sample)
         return 0.0;
     }
     local_count[C_DENSITY] += 1u;
-    sample_cover = cm;
+    last_sample.cover = cm;
     let thick = max(top - base, 1.0);
     let ph = (h - base) / thick;
     // A column's optical depth follows its coverage, not its thickness (as for bands, frame.rs).
@@ -638,27 +642,26 @@ fn density(pos: vec3<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
 }
 
 // Whether the altitudes lo..hi meet the envelope of a drawn layer with cover in the column of
-// the last density look-up (sample_cm), or the towers' there: where a ray going on from that
+// the last density look-up (`last_sample`), or the towers' there: where a ray going on from that
 // sample can find cloud. A column with no cover gives false: a stride over clear sea keeps its
 // length (the next column's cover comes from the same smooth map, and at the edge of a
 // clear area it is small, the cloud it hides as thin).
 fn envelope_overlaps(lo: f32, hi: f32) -> bool {
     // Vector compares, not a loop over the layers: with the loop the test's code alone (never
     // binding) made a lavapipe frame 5 % slower, with this form about 2 %.
-    let cover = sample_cm * f.layer_scale;
+    let cover = last_sample.cm * f.layer_scale;
     let layers = any((cover > vec3<f32>(0.0)) & (vec3<f32>(lo) <= f.layer_top) & (vec3<f32>(hi) >= f.layer_base));
     let towers = feature(FLAG_STRUCTURE) && any(cover > vec3<f32>(0.0)) && lo <= f.tower_top_m && hi >= f.tower_base_m;
     return layers || towers;
 }
 
 fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
-    sample_cover = 0.0;
-    sample_cm = vec3<f32>(0.0);
+    last_sample = LastSample(0.0, vec3<f32>(0.0));
     if (h < f.shell_base_m || h > f.shell_top_m) {
         return 0.0;
     }
     let s = weather_at(uv);
-    sample_cm = s.cm;
+    last_sample.cm = s.cm;
     let cull = has_flag(FLAG_CULL);
     if (!s.inside) {
         if (cull) {
@@ -687,7 +690,7 @@ fn density_uv(uv: vec2<f32>, h: f32, np: vec3<f32>, detail: bool) -> f32 {
         return 0.0;
     }
     local_count[C_DENSITY] += 1u;
-    sample_cover = s.cm[k];
+    last_sample.cover = s.cm[k];
     let base = f.layer_base[k];
     let ph = (h - base) / max(f.layer_top[k] - base, 1.0);
     let c = layer_carving(s.cm[k], ph);

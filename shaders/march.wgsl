@@ -356,7 +356,7 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
         w.prev_clear = true;
         if (w.fine_left > 0u) {
             w.fine_left -= 1u;
-        } else if (may_stride && sample_cover >= STRIDE_COVER_MAX) {
+        } else if (may_stride && last_sample.cover >= STRIDE_COVER_MAX) {
             // Clear air inside a mostly cloudy column: its gaps are narrow and a stride would
             // hop the next streak by the step's phase (rings of equal distance).
             w.stride = false;
