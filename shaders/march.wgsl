@@ -511,18 +511,27 @@ fn march(r: Ray, jitter: f32) -> vec4<f32> {
 
 // Where a mountain's silhouette crosses the pixel at px, the share of its height above the
 // crossing; 1 where none does (its top and bottom rays both meet the terrain or both pass).
-// Found by bisecting the pixel's middle column three times.
-fn terrain_share(px: vec2<f32>) -> f32 {
+// Found by bisecting the pixel's middle column three times; the first probe is the centre,
+// whose ray the caller has already followed (`centre_meets`), so one edge is tested: the top
+// where the centre meets the terrain, the bottom where it passes.
+fn terrain_share(px: vec2<f32>, centre_meets: bool) -> f32 {
     if (sh.terrain_on == 0u) {
-        return 1.0;
-    }
-    let top = meets_terrain(persp_dir(px - vec2<f32>(0.0, 0.5)));
-    if (top || !meets_terrain(persp_dir(px + vec2<f32>(0.0, 0.5)))) {
         return 1.0;
     }
     var lo = 0.0;
     var hi = 1.0;
-    for (var k = 0; k < 3; k++) {
+    if (centre_meets) {
+        if (meets_terrain(persp_dir(px - vec2<f32>(0.0, 0.5)))) {
+            return 1.0;
+        }
+        hi = 0.5;
+    } else {
+        if (!meets_terrain(persp_dir(px + vec2<f32>(0.0, 0.5)))) {
+            return 1.0;
+        }
+        lo = 0.5;
+    }
+    for (var k = 0; k < 2; k++) {
         let m = 0.5 * (lo + hi);
         if (meets_terrain(persp_dir(px + vec2<f32>(0.0, m - 0.5)))) {
             hi = m;
@@ -558,8 +567,14 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     // The part above the limb's or a silhouette's crossing is `share` of the pixel's height,
     // the other the rest.
     var share = select(1.0, limb_share(px), limb);
+    // The centre ray's reach to the terrain or the sea: the silhouette's first probe, and the
+    // background of a pixel marched with that one ray.
+    var centre = vec2<f32>(-1.0);
+    if (!feature(FLAG_NO_SKY)) {
+        centre = ground_reach(persp_dir(px));
+    }
     if (!limb && !feature(FLAG_NO_SKY)) {
-        share = terrain_share(px);
+        share = terrain_share(px, centre.y >= 0.0);
     }
     let split = limb || share < 1.0;
     // A grazing pixel (frame.wgsl `grazing`) that no limb or silhouette crosses: two rays at
@@ -593,7 +608,11 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
         let ck = march(r, fract(jitter + phase));
         c += w * ck;
         if (!feature(FLAG_NO_SKY)) {
-            let b = background_at(r.d);
+            var reach = centre;
+            if (rays > 1u) {
+                reach = ground_reach(r.d);
+            }
+            let b = background_at(r.d, reach);
             bg += w * b.rgb;
             if (rays > 1u) {
                 let seen = aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);

@@ -275,13 +275,12 @@ fn moon_disc(v: vec3<f32>) -> vec3<f32> {
 
 // What a view ray from the camera meets where there is no cloud.
 // The background along v (linear radiance) and the distance to the ground it shows (m; 0 for
-// sky).
-fn background_at(v: vec3<f32>) -> vec4<f32> {
+// sky), given the ray's `ground_reach`.
+fn background_at(v: vec3<f32>, reach: vec2<f32>) -> vec4<f32> {
     let up = f.cam_up;
     let h = f.cam_alt_m;
     let mu = dot(v, up);
     let o = up * (EARTH_R + h);
-    let reach = ground_reach(v);
     let t_ground = select(reach.x, reach.y, reach.y >= 0.0);
     if (t_ground >= 0.0) {
         // Ground: its albedo under Sun and sky through the clouds, fading into the haze.
