@@ -79,7 +79,7 @@ impl Preset {
                 aerial: true,
                 subset: 4,
                 wide_upsample: true,
-                graze: true,
+                graze: false,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -192,8 +192,9 @@ pub struct MarchParams {
     pub wide_upsample: bool,
     /// A pixel whose ray grazes the layers (between the sea's limb and just above the
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
-    /// takes two rays down its height, and two more where those disagree on screen. Off for
-    /// `fast`: a view from 12 km marches about a third more steps with it (docs/footprint.md).
+    /// takes two rays down its height, and two more where those disagree on screen. On for
+    /// `high` and `reference`; off for `fast` and `balanced`: `balanced` views with the horizon
+    /// in frame marched 6–36 % more steps with it (docs/footprint.md, "Grazing rays").
     #[serde(default)]
     pub graze: bool,
     pub shortcuts: Shortcuts,
