@@ -542,23 +542,73 @@ fn terrain_share(px: vec2<f32>, centre_meets: bool) -> f32 {
     return 0.5 * (lo + hi);
 }
 
-// The most rays down a grazing pixel (frame.wgsl `grazing`; the order in `shade_pixel` is
-// for four): inside-layer's far deck tops, RMSE against the 4×4 twin 0.0026 with one ray,
-// 0.0016 with up to four (docs/footprint.md).
-const GRAZE_RAYS: u32 = 4u;
-// How far apart on screen (after the tone curve, 0..1) a grazing pixel's first two rays may be
-// before it takes the other two (at 0.02: inside-layer 0.0018, a third fewer extra steps).
-const GRAZE_APART: f32 = 0.005;
+// A grazing pixel (frame.wgsl `grazing`) whose picture differs from a neighbour's by more than
+// `GRAZE_APART` on screen (after the tone curve, 0..1) takes `GRAZE_EXTRA` more rays down its
+// height (`refine_grazing`): a far deck's top seen edge-on is a line thinner than a pixel, which
+// one ray hits or misses as the step's jitter picks, a dashed line along the row.
+const GRAZE_EXTRA: u32 = 4u;
+const GRAZE_APART: f32 = 0.04;
 
 // A pixel's cloud (premultiplied, opacity) and what lies behind it (`out_scene`), from one ray
 // through its centre; where the Earth's limb or a mountain's silhouette crosses it from two,
 // one in the middle of each part (sky and sea, or what lies past the ridge and the rock),
-// weighted by the part's share of the pixel; where it grazes the layers, from two to four down
-// its height. Their pictures are averaged as the screen shows them (below).
+// weighted by the part's share of the pixel. Their pictures are averaged as the screen shows
+// them (`as_shown`). `seen` is the picture on screen; `one_ray` whether one ray made it.
 struct Shaded {
     cloud: vec4<f32>,
     scene: vec4<f32>,
+    seen: vec3<f32>,
+    one_ray: bool,
+    // The centre ray's `ground_reach` where one ray made the pixel.
+    reach: vec2<f32>,
 };
+
+// The exposure the rays will be shown at: a fixed one, else the last frame's adapted one
+// (before any frame, the Sun's-height exposure adaptation starts from).
+fn shown_at() -> f32 {
+    let adapted = !has_flag(FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
+    return max(select(f.exposure, shown_exposure.value, adapted), 1e-12);
+}
+
+// What several rays show, averaged as shown (after the tone curve, as a supersampled picture
+// is), back in radiance: the cloud keeps its mean and the background takes the rest, so the
+// present stage's bg·(1 − a) + c gives it. Averaged in radiance, a bright rim beside a dark sea
+// came out brighter than its rays' mean on screen; and each ray's own background counts, not
+// the mean background under the mean cloud, or a sky behind the rim's cloud shows through the
+// sea's clear rays. `c`, `bg` and `shown` are the rays' weighted means.
+fn as_shown(c: vec4<f32>, bg: vec3<f32>, shown: vec3<f32>, dist: f32, e: f32) -> Shaded {
+    let want = aces_inverse(shown) / e;
+    let cloud = vec4<f32>(min(c.rgb, want), c.a);
+    let back = select(bg, max(want - cloud.rgb, vec3<f32>(0.0)) / (1.0 - cloud.a), cloud.a < 0.9999);
+    return Shaded(cloud, vec4<f32>(back, dist), shown, false, vec2<f32>(-1.0));
+}
+
+// One ray of a pixel through `px` (offset down its height): its cloud, its background, what
+// they show at exposure `e`, and its distance (km; the cloud's where at least half opaque).
+struct OneRay {
+    c: vec4<f32>,
+    bg: vec3<f32>,
+    seen: vec3<f32>,
+    dist: f32,
+};
+
+fn one_ray(px: vec2<f32>, phase: f32, reach_in: vec2<f32>, own_reach: bool, e: f32) -> OneRay {
+    let r = make_ray(px);
+    let ck = march(r, phase);
+    var o = OneRay(ck, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+    if (!feature(FLAG_NO_SKY)) {
+        // Not by select, which would run both.
+        var reach = reach_in;
+        if (own_reach) {
+            reach = ground_reach(r.d);
+        }
+        let b = background_at(r.d, reach);
+        o.bg = b.rgb;
+        o.dist = select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
+    }
+    o.seen = aces((ck.rgb + o.bg * (1.0 - ck.a)) * e);
+    return o;
+}
 
 fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     // One loop and one call site for both cases: a SIMD CPU driver runs every call site of the
@@ -570,105 +620,197 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
     // The centre ray's reach to the terrain or the sea: the silhouette's first probe, and the
     // background of a pixel marched with that one ray.
     var centre = vec2<f32>(-1.0);
-    if (!feature(FLAG_NO_SKY)) {
-        centre = ground_reach(persp_dir(px));
-    }
     if (!limb && !feature(FLAG_NO_SKY)) {
+        centre = ground_reach(persp_dir(px));
         share = terrain_share(px, centre.y >= 0.0);
     }
-    let split = limb || share < 1.0;
-    // A grazing pixel (frame.wgsl `grazing`) that no limb or silhouette crosses: two rays at
-    // evenly spaced heights down its middle column, and two more between where those two
-    // disagree on screen (a deck's edge between them); each a like share.
-    let graze = !split && has_flag(FLAG_GRAZE) && !feature(FLAG_NO_SKY) && grazing(px);
-    var rays = select(1u, 2u, split || graze);
+    let rays = select(1u, 2u, limb || share < 1.0);
+    let e = shown_at();
     var c = vec4<f32>(0.0);
     var bg = vec3<f32>(0.0);
     var shown = vec3<f32>(0.0);
-    var first = vec3<f32>(0.0);
     var dist = 0.0;
-    // The exposure they will be shown at: a fixed one, else the last frame's adapted one (before
-    // any frame, the Sun's-height exposure adaptation starts from).
-    let adapted = !has_flag(FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
-    let e = max(select(f.exposure, shown_exposure.value, adapted), 1e-12);
     for (var k = 0u; k < rays; k++) {
-        var w = select(share, 1.0 - share, k == 1u);
-        var y = select(0.5 * share - 0.5, 0.5 * share, k == 1u);
+        let w = select(share, 1.0 - share, k == 1u);
+        let y = select(0.5 * share - 0.5, 0.5 * share, k == 1u);
         // Each ray its own phase of the step, spread evenly.
-        var phase = 0.5 * f32(k);
-        if (graze) {
-            // Heights 0, 2, 1, 3 of four: the first two a half-pixel apart. Weighted 1 here,
-            // each divided by the count below.
-            let i = (k >> 1u) | ((k & 1u) << 1u);
-            w = 1.0;
-            y = (f32(i) + 0.5) / f32(GRAZE_RAYS) - 0.5;
-            phase = f32(i) / f32(GRAZE_RAYS);
-        }
-        let r = make_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), rays > 1u));
-        let ck = march(r, fract(jitter + phase));
-        c += w * ck;
-        if (!feature(FLAG_NO_SKY)) {
-            var reach = centre;
-            if (rays > 1u) {
-                reach = ground_reach(r.d);
-            }
-            let b = background_at(r.d, reach);
-            bg += w * b.rgb;
-            if (rays > 1u) {
-                let seen = aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
-                shown += w * seen;
-                first = select(first, seen, k == 0u);
-                let apart = abs(seen - first);
-                if (graze && k == 1u && max(apart.x, max(apart.y, apart.z)) > GRAZE_APART) {
-                    rays = GRAZE_RAYS;
-                }
-            }
-            dist += w * select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
-        }
-    }
-    if (graze) {
-        let n = 1.0 / f32(rays);
-        c *= n;
-        bg *= n;
-        shown *= n;
-        dist *= n;
+        let o = one_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), rays > 1u), fract(jitter + 0.5 * f32(k)), centre, rays > 1u, e);
+        c += w * o.c;
+        bg += w * o.bg;
+        shown += w * o.seen;
+        dist += w * o.dist;
     }
     if (rays > 1u) {
-        // What the rays show, averaged as shown (after the tone curve, as a supersampled
-        // picture is), back in radiance: the cloud keeps its mean and the background takes the
-        // rest, so the present stage's bg·(1 − a) + c gives it. Averaged in radiance, a bright
-        // rim beside a dark sea came out brighter than its rays' mean on screen; and each ray's
-        // own background counts, not the mean background under the mean cloud, or a sky behind
-        // the rim's cloud shows through the sea's clear rays.
-        let want = aces_inverse(shown) / e;
-        c = vec4<f32>(min(c.rgb, want), c.a);
-        bg = select(bg, max(want - c.rgb, vec3<f32>(0.0)) / (1.0 - c.a), c.a < 0.9999);
+        return as_shown(c, bg, shown, dist, e);
     }
-    return Shaded(c, vec4<f32>(bg, dist));
+    return Shaded(c, vec4<f32>(bg, dist), shown, true, centre);
+}
+
+// The `k`-th of a grazing pixel's `GRAZE_EXTRA` more rays: the pixel's five at evenly spaced
+// heights (±1/5, ±2/5 from the centre, whose ray it has), each its own phase of the step.
+fn refine_ray(px: vec2<f32>, jitter: f32, k: u32, reach: vec2<f32>, e: f32) -> OneRay {
+    let n = f32(GRAZE_EXTRA + 1u);
+    let y = select(-1.0, 1.0, (k & 1u) == 1u) * f32((k >> 1u) + 1u) / n;
+    // No limb or silhouette crosses the pixel (`shade_pixel` would have split it), so its rays
+    // all meet the terrain or all pass it: past it, the centre's reach is theirs.
+    return one_ray(px + vec2<f32>(0.0, y), fract(jitter + f32(k + 1u) / n), reach, reach.y >= 0.0, e);
+}
+
+// The extra rays of the workgroup's refined pixels, in job order (pixel rank × GRAZE_EXTRA + k):
+// cloud, and background with distance in w.
+const GRAZE_JOBS: u32 = 64u * GRAZE_EXTRA;
+var<workgroup> wg_ray_c: array<vec4<f32>, GRAZE_JOBS>;
+var<workgroup> wg_ray_b: array<vec4<f32>, GRAZE_JOBS>;
+
+// A grazing pixel marched with one ray (`s`) and its extra rays (from `rank`'s jobs), averaged
+// as shown.
+fn refined(s: Shaded, rank: u32) -> Shaded {
+    let e = shown_at();
+    var c = s.cloud;
+    var bg = s.scene.rgb;
+    var shown = s.seen;
+    var dist = s.scene.a;
+    for (var k = 0u; k < GRAZE_EXTRA; k++) {
+        let j = rank * GRAZE_EXTRA + k;
+        let ck = wg_ray_c[j];
+        let b = wg_ray_b[j];
+        c += ck;
+        bg += b.rgb;
+        shown += aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
+        dist += b.a;
+    }
+    let n = 1.0 / f32(GRAZE_EXTRA + 1u);
+    return as_shown(c * n, bg * n, shown * n, dist * n, e);
+}
+
+// Each invocation's picture on screen for its neighbours' grazing test (w: 1 where marched).
+var<workgroup> wg_seen: array<vec4<f32>, 64>;
+
+// Whether the pixel `li` of the 8×8 workgroup differs on screen from a marched neighbour in
+// its row or column by more than `GRAZE_APART`.
+fn differs_from_neighbours(li: u32, seen: vec3<f32>) -> bool {
+    var most = 0.0;
+    let x = li & 7u;
+    let y = li >> 3u;
+    for (var k = 0u; k < 4u; k++) {
+        let dx = select(select(0i, 1i, k == 1u), -1i, k == 0u);
+        let dy = select(select(0i, 1i, k == 3u), -1i, k == 2u);
+        let nx = i32(x) + dx;
+        let ny = i32(y) + dy;
+        if (nx >= 0 && nx < 8 && ny >= 0 && ny < 8) {
+            let o = wg_seen[u32(ny * 8 + nx)];
+            if (o.w > 0.0) {
+                let d = abs(o.rgb - seen);
+                most = max(most, max(d.x, max(d.y, d.z)));
+            }
+        }
+    }
+    return most > GRAZE_APART;
+}
+
+// The march pixel of the invocation at `id` (its subset cell's pixel this frame).
+fn pixel_of(id: vec2<u32>) -> vec2<u32> {
+    let n = max(u32(f.subset_n), 1u);
+    return min(id * n + vec2<u32>(f.subset_offset), vec2<u32>(f.out_size) - 1u);
+}
+
+// The step's phase at a pixel: interleaved gradient noise (Jimenez 2014), shifted per frame.
+fn pixel_jitter(px: vec2<f32>) -> f32 {
+    if (!has_flag(FLAG_JITTER)) {
+        return 0.5;
+    }
+    let q = px + vec2<f32>(5.588238 * f.frame_index);
+    return fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
+}
+
+// Per invocation: 1 where its pixel takes the grazing rays; their count, for every invocation.
+var<workgroup> wg_need: array<u32, 64>;
+var<workgroup> wg_needed: u32;
+var<workgroup> wg_reach: array<vec2<f32>, 64>;
+
+// A grazing pixel whose picture differs from a neighbour's (`differs_from_neighbours`) takes
+// `GRAZE_EXTRA` more rays, shared out over the whole workgroup so that no lane marches four
+// while the others wait; their results go to `wg_ray_c` / `wg_ray_b` for `refined`. Whether
+// this invocation's pixel takes them. Called by every invocation (it holds barriers).
+fn grazing_rays(li: u32, wid: vec2<u32>, marched: bool, px: vec2<f32>, s: Shaded, e: f32) -> bool {
+    let full = vec2<u32>(f.out_size);
+    wg_seen[li] = vec4<f32>(s.seen, select(0.0, 1.0, marched));
+    wg_reach[li] = s.reach;
+    workgroupBarrier();
+    let need = marched && s.one_ray && grazing(px) && differs_from_neighbours(li, s.seen);
+    wg_need[li] = select(0u, 1u, need);
+    workgroupBarrier();
+    if (li == 0u) {
+        var t = 0u;
+        for (var i = 0u; i < 64u; i++) {
+            t += wg_need[i];
+        }
+        wg_needed = t;
+    }
+    let jobs = workgroupUniformLoad(&wg_needed) * GRAZE_EXTRA;
+    for (var round = 0u; round < (jobs + 63u) / 64u; round++) {
+        let job = round * 64u + li;
+        if (job < jobs) {
+            // The job's pixel: the (job / GRAZE_EXTRA)-th that needs the rays.
+            let want = job / GRAZE_EXTRA;
+            var owner = 0u;
+            var seen_n = 0u;
+            for (var i = 0u; i < 64u; i++) {
+                owner = select(owner, i, wg_need[i] == 1u && seen_n == want);
+                seen_n += wg_need[i];
+            }
+            let opix = pixel_of(wid * 8u + vec2<u32>(owner & 7u, owner >> 3u));
+            let opx = vec2<f32>(opix) + 0.5;
+            far_m = ray_far[min(opix.y * full.x + opix.x, arrayLength(&ray_far) - 1u)];
+            let o = refine_ray(opx, pixel_jitter(opx), job % GRAZE_EXTRA, wg_reach[owner], e);
+            wg_ray_c[job] = o.c;
+            wg_ray_b[job] = vec4<f32>(o.bg, o.dist);
+        }
+    }
+    workgroupBarrier();
+    return need;
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+fn main(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
     if (li < N_COUNTERS) {
         atomicStore(&wg_count[li], 0u);
     }
     workgroupBarrier();
     // One invocation per subset cell: the cell's pixel this frame (every pixel when n is 1).
+    // Every pixel first with its one ray (or the limb's or a silhouette's two); then, once the
+    // workgroup's pictures are known, the grazing pixels that need them take more rays.
     let n = max(u32(f.subset_n), 1u);
     let full = vec2<u32>(f.out_size);
     let cells = (full + vec2<u32>(n - 1u)) / n;
-    if (all(id.xy < cells)) {
-        let pix = min(id.xy * n + vec2<u32>(f.subset_offset), full - 1u);
-        let px = vec2<f32>(pix) + 0.5;
-        var jitter = 0.5;
-        if (has_flag(FLAG_JITTER)) {
-            // Interleaved gradient noise (Jimenez 2014), shifted per frame.
-            let q = px + vec2<f32>(5.588238 * f.frame_index);
-            jitter = fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
-        }
+    let marched = all(id.xy < cells);
+    let pix = pixel_of(id.xy);
+    let px = vec2<f32>(pix) + 0.5;
+    let e = shown_at();
+    var s = Shaded(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), false, vec2<f32>(-1.0));
+    if (marched) {
         local_count[C_RAYS] = 1u;
         far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
-        let s = shade_pixel(px, jitter);
+        s = shade_pixel(px, pixel_jitter(px));
+    }
+    // Only where the frame asks for it, compiled out elsewhere (`feature`): a CPU driver pays
+    // for a second call site of the march, taken or not (a tenth of `fast`'s time on lavapipe).
+    var need = false;
+    if (feature(FLAG_GRAZE) && !feature(FLAG_NO_SKY)) {
+        need = grazing_rays(li, wid.xy, marched, px, s, e);
+    }
+    if (marched) {
+        if (need) {
+            var rank = 0u;
+            for (var i = 0u; i < li; i++) {
+                rank += wg_need[i];
+            }
+            s = refined(s, rank);
+        }
         textureStore(out_cloud, vec2<i32>(id.xy), s.cloud);
         textureStore(out_scene, vec2<i32>(id.xy), s.scene);
         if (local_count[C_CUT] != 0u) {

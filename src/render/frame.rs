@@ -172,7 +172,8 @@ pub mod flags {
     /// The exposure is fixed (`Frame.exposure` is what the present stage shows at), not adapted.
     pub const FIXED_EXPOSURE: u32 = 4096;
     /// Pixels whose rays graze the layers (between the sea's limb and just above the
-    /// horizontal) take up to four rays down their height (`MarchParams::graze`).
+    /// horizontal) take four more rays down their height where their picture differs from a
+    /// neighbour's (`MarchParams::graze`).
     pub const GRAZE: u32 = 8192;
 }
 

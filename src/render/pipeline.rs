@@ -16,7 +16,8 @@ use super::shader;
 /// Which of the cloud stages' optional code a frame compiles in: its flags ([`FEATURE_BITS`] of
 /// them) as the WGSL constant `FEATURES`. A CPU driver runs both sides of every branch, so a frame
 /// would otherwise pay for every feature it does not use (the two-step blend, the bands' carve,
-/// the towers, the cells, the streaks, the detail noise, the top-down view's lighting).
+/// the towers, the cells, the streaks, the detail noise, the top-down view's lighting, the
+/// grazing pixels' extra rays).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Variant(u32);
 
@@ -27,7 +28,8 @@ pub const FEATURE_BITS: u32 = flags::STRUCTURE
     | flags::CELLS
     | flags::BLEND
     | flags::DETAIL
-    | flags::NO_SKY;
+    | flags::NO_SKY
+    | flags::GRAZE;
 
 impl Variant {
     /// The variant a frame's flags (`frame::flags`) need.

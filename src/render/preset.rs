@@ -79,7 +79,7 @@ impl Preset {
                 aerial: true,
                 subset: 4,
                 wide_upsample: true,
-                graze: false,
+                graze: true,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -192,9 +192,10 @@ pub struct MarchParams {
     pub wide_upsample: bool,
     /// A pixel whose ray grazes the layers (between the sea's limb and just above the
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
-    /// takes two rays down its height, and two more where those disagree on screen. On for
-    /// `high` and `reference`; off for `fast` and `balanced`: `balanced` views with the horizon
-    /// in frame marched 6–36 % more steps with it (docs/footprint.md, "Grazing rays").
+    /// takes four more rays down its height where its one ray's picture differs from a
+    /// neighbour's on screen. On for `balanced`, `high` and `reference`; off for `fast`:
+    /// `balanced` views with the horizon in frame march 3–15 % more steps with it
+    /// (docs/footprint.md, "Grazing rays where the picture asks").
     #[serde(default)]
     pub graze: bool,
     pub shortcuts: Shortcuts,

@@ -173,7 +173,7 @@ impl ShadowPass {
             (OWN_BINDINGS, GROUP_TARGET, shader::SHADOW),
             &[("MEAN_DENSITY", 1.0)],
             // The light volume takes no detail noise and draws no view.
-            flags::DETAIL | flags::NO_SKY,
+            flags::DETAIL | flags::NO_SKY | flags::GRAZE,
         );
         let mut pass = ShadowPass {
             pipelines,
