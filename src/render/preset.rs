@@ -194,8 +194,9 @@ pub struct MarchParams {
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
     /// takes four more rays down its height where its one ray's picture differs from a
     /// neighbour's on screen. On for `balanced`, `high` and `reference`; off for `fast`:
-    /// `balanced` views with the horizon in frame march 3–15 % more steps with it
-    /// (docs/footprint.md, "Grazing rays where the picture asks").
+    /// `balanced` views with the horizon in frame march 3–21 % more steps with it. Frames that
+    /// march a subset of the pixels (reprojection) go without (docs/footprint.md, "Grazing rays
+    /// where the picture asks").
     #[serde(default)]
     pub graze: bool,
     pub shortcuts: Shortcuts,
