@@ -644,7 +644,7 @@ fn a_mountain_silhouette_shows_what_its_pixels_cover() {
 
 /// The same for a far deck's top seen edge-on (the bench's inside-layer scene from 4.5 km: the
 /// rows just under the horizontal): a pixel whose ray grazes the layers takes four more rays
-/// down its height where its picture differs from a neighbour's (march.wgsl `refine_grazing`),
+/// down its height where its picture differs from a neighbour's (march.wgsl `grazing_rays`),
 /// and the resolve blends it only along its row. `balanced` (`MarchParams::graze`, on by
 /// default). Off (one ray, the resolve across rows): the deck's row at RMSE 0.029, the picture
 /// at 0.0049; on, 0.0101 and 0.0026 (lavapipe, 160×90; the earlier two-then-four rays in every
