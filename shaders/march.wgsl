@@ -170,7 +170,7 @@ struct Segments {
     seg2: vec2<f32>,
 };
 
-fn segments(r: Ray, mu: f32) -> Segments {
+fn segments(r: Ray, mu: f32, ground_t: f32) -> Segments {
     var s: Segments;
     let outer = shell_hits(r.h, mu, f.shell_top_m);
     if (outer.y < 0.0 || outer.x > outer.y) {
@@ -189,12 +189,12 @@ fn segments(r: Ray, mu: f32) -> Segments {
     if (ground.x <= ground.y && ground.y > 0.0) {
         end_all = min(end_all, max(ground.x, 0.0));
     }
-    // The terrain hides what lies behind it (the score's nadir rays see the cloud above it).
-    if (!feature(FLAG_NO_SKY)) {
-        let hit = terrain_hit(r.up * (EARTH_R + r.h), r.h, mu, r.d, end_all);
-        if (hit >= 0.0) {
-            end_all = hit;
-        }
+    // The terrain hides what lies behind it (the score's nadir rays see the cloud above it):
+    // where the ray's reach (`ground_reach`, the one its background shows) meets it, so the
+    // cloud ends where the picture's rock begins and the height field is marched once a ray,
+    // not twice (docs/performance.md).
+    if (!feature(FLAG_NO_SKY) && ground_t >= 0.0) {
+        end_all = min(end_all, ground_t);
     }
     // At most two segments: above and below the innermost shell's bottom.
     let inner = shell_hits(r.h, mu, f.shell_base_m);
@@ -450,10 +450,10 @@ fn through_air(r: Ray, mu: f32, cloud: vec3<f32>, alpha: f32, dist: f32) -> vec3
 
 // The view ray's cloud: premultiplied radiance and opacity. In steps: its segments, then a
 // walk to each cloud sample (`next_cloud`), lit (`light_in`) and added, then the air in front.
-fn march(r: Ray, jitter: f32) -> vec4<f32> {
+fn march(r: Ray, jitter: f32, ground_t: f32) -> vec4<f32> {
     cloud_dist = 0.0;
     let mu = dot(r.d, r.up);
-    let span = segments(r, mu);
+    let span = segments(r, mu, ground_t);
     if (!span.hit) {
         return vec4<f32>(0.0);
     }
@@ -596,14 +596,14 @@ struct OneRay {
 
 fn one_ray(px: vec2<f32>, phase: f32, reach_in: vec2<f32>, own_reach: bool, e: f32) -> OneRay {
     let r = make_ray(px);
-    let ck = march(r, phase);
+    // Not by select, which would run both.
+    var reach = reach_in;
+    if (own_reach && !feature(FLAG_NO_SKY)) {
+        reach = ground_reach(r.d);
+    }
+    let ck = march(r, phase, reach.y);
     var o = OneRay(ck, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     if (!feature(FLAG_NO_SKY)) {
-        // Not by select, which would run both.
-        var reach = reach_in;
-        if (own_reach) {
-            reach = ground_reach(r.d);
-        }
         let b = background_at(r.d, reach);
         o.bg = b.rgb;
         o.dist = select(b.a, cloud_dist, ck.a >= 0.5) * 1e-3;
