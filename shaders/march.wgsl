@@ -596,7 +596,8 @@ struct OneRay {
 
 fn one_ray(px: vec2<f32>, phase: f32, reach_in: vec2<f32>, own_reach: bool, e: f32) -> OneRay {
     let r = make_ray(px);
-    // Not by select, which would run both.
+    // An `if`, not a select: a GPU skips the terrain march where the caller gave the reach (a
+    // CPU driver runs it masked either way, docs/performance.md).
     var reach = reach_in;
     if (own_reach && !feature(FLAG_NO_SKY)) {
         reach = ground_reach(r.d);
