@@ -614,8 +614,9 @@ fn one_ray(px: vec2<f32>, phase: f32, reach_in: vec2<f32>, own_reach: bool, e: f
 }
 
 fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
-    // One loop and one call site for both cases: a SIMD CPU driver runs every call site of the
-    // march for all its lanes.
+    // One loop and one call site for one ray or two. On a SIMD CPU driver the loop is still a
+    // second march for every lane, taken or not, as a second call site would be (measured:
+    // docs/performance.md, "Issue 30's cost so far"); only a separate dispatch avoids it.
     let limb = !feature(FLAG_NO_SKY) && limb_side(px) == 0;
     // The part above the limb's or a silhouette's crossing is `share` of the pixel's height,
     // the other the rest.
