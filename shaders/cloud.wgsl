@@ -95,7 +95,9 @@ const C_EARLY: u32 = 7u;
 // Rays whose march the driver stopped before it ended: Mesa's llvmpipe caps the loop iterations
 // of one shader invocation (65 535, all loops together), which only `reference` reaches.
 const C_CUT: u32 = 8u;
-const N_COUNTERS: u32 = 9u;
+// Pixels the march's second dispatch took more rays for (march.wgsl `rework`).
+const C_REWORK: u32 = 9u;
+const N_COUNTERS: u32 = 10u;
 
 var<private> local_count: array<u32, N_COUNTERS>;
 

@@ -124,7 +124,7 @@ const GRAZE_MU: f32 = 0.01;
 // horizontal. There it meets the layers' tops and bases nearly edge-on: a deck's top or base
 // crosses the pixel's row as a line thinner than the pixel, and one ray shows one side of it,
 // or whichever side the step's jitter picks. The march takes more rays down such a pixel where
-// its picture differs from its neighbours' (march.wgsl `grazing_rays`), and the present
+// its picture differs from its neighbours' (march.wgsl `needs_grazing_rays`, `rework`), and the present
 // stage's resolve blends only along its row.
 fn grazing(px: vec2<f32>) -> bool {
     let m = dot(persp_dir(px), f.cam_up);

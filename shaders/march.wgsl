@@ -13,7 +13,7 @@
 // geometry hides what lies behind (render::embed, shaders/embed.wgsl); one huge value otherwise.
 @group(2) @binding(3) var<storage, read> ray_far: array<f32>;
 // The exposure the present stage last used (exposure.wgsl; 0 before the first frame): the limb's
-// rays are averaged as they will be seen (`shade_pixel`).
+// rays are averaged as they will be seen (`as_shown`).
 @group(2) @binding(4) var<storage, read> shown_exposure: ExposureState;
 
 // This invocation's pixel's entry of ray_far.
@@ -544,25 +544,26 @@ fn terrain_share(px: vec2<f32>, centre_meets: bool) -> f32 {
 
 // A grazing pixel (frame.wgsl `grazing`) whose picture differs from a neighbour's by more than
 // `GRAZE_APART` on screen (after the tone curve, 0..1) takes `GRAZE_EXTRA` more rays down its
-// height (`grazing_rays`): a far deck's top seen edge-on is a line thinner than a pixel, which
-// one ray hits or misses as the step's jitter picks, a dashed line along the row. At 0.04 the
+// height (`needs_grazing_rays`, `extra_ray`): a far deck's top seen edge-on is a line thinner
+// than a pixel, which one ray hits or misses as the step's jitter picks, a dashed line along the
+// row. At 0.04 the
 // bench's inside-layer view is at half its first error for the fewest extra steps
 // (docs/footprint.md, "Grazing rays where the picture asks").
 const GRAZE_EXTRA: u32 = 4u;
 const GRAZE_APART: f32 = 0.04;
 
-// A pixel's cloud (premultiplied, opacity) and what lies behind it (`out_scene`), from one ray
-// through its centre; where the Earth's limb or a mountain's silhouette crosses it from two,
-// one in the middle of each part (sky and sea, or what lies past the ridge and the rock),
-// weighted by the part's share of the pixel. Their pictures are averaged as the screen shows
-// them (`as_shown`). `seen` is the picture on screen; `one_ray` whether one ray made it.
+// What a pixel's first ray shows: its cloud (premultiplied, opacity), what lies behind it
+// (`out_scene`: radiance, distance) and the picture on screen (`seen`). Where the Earth's limb or
+// a mountain's silhouette crosses the pixel (`one_ray` false) the ray is the upper part's, in
+// its middle, and `share` that part's share of the pixel's height; `rework` adds the lower
+// part's ray. `reach`: the centre ray's `ground_reach` where one ray makes the pixel.
 struct Shaded {
     cloud: vec4<f32>,
     scene: vec4<f32>,
     seen: vec3<f32>,
     one_ray: bool,
-    // The centre ray's `ground_reach` where one ray made the pixel.
     reach: vec2<f32>,
+    share: f32,
 };
 
 // The exposure the rays will be shown at: a fixed one, else the last frame's adapted one
@@ -582,7 +583,7 @@ fn as_shown(c: vec4<f32>, bg: vec3<f32>, shown: vec3<f32>, dist: f32, e: f32) ->
     let want = aces_inverse(shown) / e;
     let cloud = vec4<f32>(min(c.rgb, want), c.a);
     let back = select(bg, max(want - cloud.rgb, vec3<f32>(0.0)) / (1.0 - cloud.a), cloud.a < 0.9999);
-    return Shaded(cloud, vec4<f32>(back, dist), shown, false, vec2<f32>(-1.0));
+    return Shaded(cloud, vec4<f32>(back, dist), shown, false, vec2<f32>(-1.0), 1.0);
 }
 
 // One ray of a pixel through `px` (offset down its height): its cloud, its background, what
@@ -613,10 +614,9 @@ fn one_ray(px: vec2<f32>, phase: f32, reach_in: vec2<f32>, own_reach: bool, e: f
     return o;
 }
 
-fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
-    // One loop and one call site for one ray or two. On a SIMD CPU driver the loop is still a
-    // second march for every lane, taken or not, as a second call site would be (measured:
-    // docs/performance.md, "Issue 30's cost so far"); only a separate dispatch avoids it.
+// A pixel's first ray (`Shaded`): through its centre, or where the limb or a silhouette crosses
+// it, through the middle of the part above the crossing.
+fn first_ray(px: vec2<f32>, jitter: f32) -> Shaded {
     let limb = !feature(FLAG_NO_SKY) && limb_side(px) == 0;
     // The part above the limb's or a silhouette's crossing is `share` of the pixel's height,
     // the other the rest.
@@ -628,69 +628,102 @@ fn shade_pixel(px: vec2<f32>, jitter: f32) -> Shaded {
         centre = ground_reach(persp_dir(px));
         share = terrain_share(px, centre.y >= 0.0);
     }
-    let rays = select(1u, 2u, limb || share < 1.0);
-    let e = shown_at();
-    var c = vec4<f32>(0.0);
-    var bg = vec3<f32>(0.0);
-    var shown = vec3<f32>(0.0);
-    var dist = 0.0;
-    for (var k = 0u; k < rays; k++) {
-        let w = select(share, 1.0 - share, k == 1u);
-        let y = select(0.5 * share - 0.5, 0.5 * share, k == 1u);
-        // Each ray its own phase of the step, spread evenly.
-        let o = one_ray(px + select(vec2<f32>(0.0), vec2<f32>(0.0, y), rays > 1u), fract(jitter + 0.5 * f32(k)), centre, rays > 1u, e);
-        c += w * o.c;
-        bg += w * o.bg;
-        shown += w * o.seen;
-        dist += w * o.dist;
-    }
-    if (rays > 1u) {
-        return as_shown(c, bg, shown, dist, e);
-    }
-    return Shaded(c, vec4<f32>(bg, dist), shown, true, centre);
+    let split = limb || share < 1.0;
+    let y = select(0.0, 0.5 * share - 0.5, split);
+    let o = one_ray(px + vec2<f32>(0.0, y), jitter, centre, split, shown_at());
+    return Shaded(o.c, vec4<f32>(o.bg, o.dist), o.seen, !split, centre, share);
 }
 
-// The `k`-th of a grazing pixel's `GRAZE_EXTRA` more rays: the pixel's five at evenly spaced
-// heights (±1/5, ±2/5 from the centre, whose ray it has), each its own phase of the step.
-fn refine_ray(px: vec2<f32>, jitter: f32, k: u32, reach: vec2<f32>, e: f32) -> OneRay {
+// Pixels whose picture takes more rays than their first, left by `main` for `rework`: a split
+// pixel's second (the part below the crossing), a grazing pixel's `GRAZE_EXTRA` at other
+// heights. A second dispatch, sized by their count, marches them: a CPU driver runs every lane
+// through every call of the march in a dispatch, taken or not (docs/performance.md), so `main`
+// keeps one.
+struct ReworkEntry {
+    // The first ray's `Shaded` fields.
+    c: vec4<f32>,
+    back: vec4<f32>,
+    seen: vec3<f32>,
+    share: f32,
+    reach: vec2<f32>,
+    // The invocation's subset cell, x | y << 16.
+    cell: u32,
+    // The extra rays: 1 (split) or GRAZE_EXTRA (grazing).
+    rays: u32,
+};
+
+struct ReworkList {
+    // `rework`'s workgroups: copied into its indirect dispatch (render::march).
+    groups: atomic<u32>,
+    // Entries left; past the list's length a pixel keeps its first ray.
+    count: atomic<u32>,
+    entries: array<ReworkEntry>,
+};
+
+@group(2) @binding(5) var<storage, read_write> rework_list: ReworkList;
+
+// `rework`'s workgroup: a multiple of `GRAZE_EXTRA`, so a pixel's jobs share one.
+const REWORK_GROUP: u32 = 64u;
+
+fn leave_for_rework(cell: vec2<u32>, s: Shaded) {
+    let slot = atomicAdd(&rework_list.count, 1u);
+    if (slot < arrayLength(&rework_list.entries)) {
+        let rays = select(GRAZE_EXTRA, 1u, !s.one_ray);
+        rework_list.entries[slot] = ReworkEntry(s.cloud, s.scene, s.seen, s.share, s.reach, cell.x | (cell.y << 16u), rays);
+        if (slot % (REWORK_GROUP / GRAZE_EXTRA) == 0u) {
+            atomicAdd(&rework_list.groups, 1u);
+        }
+    }
+}
+
+// The `k`-th extra ray of a pixel whose first ray is `en`: a split pixel's lower part's middle
+// at the step's other half phase; a grazing pixel's at evenly spaced heights (±1/5, ±2/5 of it
+// from the centre, whose ray it has), each its own phase of the step. No limb or silhouette
+// crosses a grazing pixel (it would have been split), so its rays all meet the terrain or all
+// pass it: past it, the centre's reach is theirs.
+fn extra_ray(px: vec2<f32>, jitter: f32, k: u32, en: ReworkEntry, e: f32) -> OneRay {
+    let split = en.rays == 1u;
     let n = f32(GRAZE_EXTRA + 1u);
-    let y = select(-1.0, 1.0, (k & 1u) == 1u) * f32((k >> 1u) + 1u) / n;
-    // No limb or silhouette crosses the pixel (`shade_pixel` would have split it), so its rays
-    // all meet the terrain or all pass it: past it, the centre's reach is theirs.
-    return one_ray(px + vec2<f32>(0.0, y), fract(jitter + f32(k + 1u) / n), reach, reach.y >= 0.0, e);
+    let graze_y = select(-1.0, 1.0, (k & 1u) == 1u) * f32((k >> 1u) + 1u) / n;
+    let y = select(graze_y, 0.5 * en.share, split);
+    let phase = select(fract(jitter + f32(k + 1u) / n), fract(jitter + 0.5), split);
+    return one_ray(px + vec2<f32>(0.0, y), phase, en.reach, split || en.reach.y >= 0.0, e);
 }
 
-// The extra rays of the workgroup's refined pixels, in job order (pixel rank × GRAZE_EXTRA + k):
-// cloud, and background with distance in w.
-const GRAZE_JOBS: u32 = 64u * GRAZE_EXTRA;
-var<workgroup> wg_ray_c: array<vec4<f32>, GRAZE_JOBS>;
-var<workgroup> wg_ray_b: array<vec4<f32>, GRAZE_JOBS>;
+// The extra rays of a workgroup's pixels, by job (`rework`): cloud, and background with the
+// distance in w.
+var<workgroup> wg_ray_c: array<vec4<f32>, REWORK_GROUP>;
+var<workgroup> wg_ray_b: array<vec4<f32>, REWORK_GROUP>;
 
-// A grazing pixel marched with one ray (`s`) and its extra rays (from `rank`'s jobs), averaged
-// as shown.
-fn refined(s: Shaded, rank: u32) -> Shaded {
+// A pixel's rays averaged as shown (`as_shown`): its first (`en`) and its extra rays, from the
+// workgroup's jobs `first`..: a split pixel's two weighted by their parts' shares, a grazing
+// pixel's five equally.
+fn reworked(en: ReworkEntry, first: u32) -> Shaded {
     let e = shown_at();
-    var c = s.cloud;
-    var bg = s.scene.rgb;
-    var shown = s.seen;
-    var dist = s.scene.a;
-    for (var k = 0u; k < GRAZE_EXTRA; k++) {
-        let j = rank * GRAZE_EXTRA + k;
-        let ck = wg_ray_c[j];
-        let b = wg_ray_b[j];
-        c += ck;
-        bg += b.rgb;
-        shown += aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
-        dist += b.a;
+    let split = en.rays == 1u;
+    let w0 = select(1.0, en.share, split);
+    let wk = select(1.0, 1.0 - en.share, split);
+    var c = w0 * en.c;
+    var bg = w0 * en.back.rgb;
+    var shown = w0 * en.seen;
+    var dist = w0 * en.back.a;
+    for (var k = 0u; k < en.rays; k++) {
+        let ck = wg_ray_c[first + k];
+        let b = wg_ray_b[first + k];
+        c += wk * ck;
+        bg += wk * b.rgb;
+        shown += wk * aces((ck.rgb + b.rgb * (1.0 - ck.a)) * e);
+        dist += wk * b.a;
     }
-    let n = 1.0 / f32(GRAZE_EXTRA + 1u);
+    let n = select(1.0 / f32(GRAZE_EXTRA + 1u), 1.0, split);
     return as_shown(c * n, bg * n, shown * n, dist * n, e);
 }
 
-// Each invocation's picture on screen for its neighbours' grazing test (w: 1 where marched).
+// Each invocation's picture on screen for its neighbours' grazing test (w: 1 where one ray
+// made it).
 var<workgroup> wg_seen: array<vec4<f32>, 64>;
 
-// Whether the pixel `li` of the 8×8 workgroup differs on screen from a marched neighbour in
+// Whether the pixel `li` of the 8×8 workgroup differs on screen from a one-ray neighbour in
 // its row or column by more than `GRAZE_APART`.
 fn differs_from_neighbours(li: u32, seen: vec3<f32>) -> bool {
     var most = 0.0;
@@ -712,6 +745,17 @@ fn differs_from_neighbours(li: u32, seen: vec3<f32>) -> bool {
     return most > GRAZE_APART;
 }
 
+// Whether this invocation's one-ray pixel is a grazing pixel whose picture differs from a
+// neighbour's (`differs_from_neighbours`), and so takes `GRAZE_EXTRA` more rays. Called by
+// every invocation (it holds a barrier). A split pixel's first ray shows only part of it: it is
+// no one's neighbour here.
+fn needs_grazing_rays(li: u32, marched: bool, px: vec2<f32>, s: Shaded) -> bool {
+    let one = marched && s.one_ray;
+    wg_seen[li] = vec4<f32>(s.seen, select(0.0, 1.0, one));
+    workgroupBarrier();
+    return one && grazing(px) && differs_from_neighbours(li, s.seen);
+}
+
 // The march pixel of the invocation at `id` (its subset cell's pixel this frame).
 fn pixel_of(id: vec2<u32>) -> vec2<u32> {
     let n = max(u32(f.subset_n), 1u);
@@ -727,58 +771,22 @@ fn pixel_jitter(px: vec2<f32>) -> f32 {
     return fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
 }
 
-// Per invocation: 1 where its pixel takes the grazing rays; their count, for every invocation.
-var<workgroup> wg_need: array<u32, 64>;
-var<workgroup> wg_needed: u32;
-var<workgroup> wg_reach: array<vec2<f32>, 64>;
-
-// A grazing pixel whose picture differs from a neighbour's (`differs_from_neighbours`) takes
-// `GRAZE_EXTRA` more rays, shared out over the whole workgroup so that no lane marches four
-// while the others wait; their results go to `wg_ray_c` / `wg_ray_b` for `refined`. Whether
-// this invocation's pixel takes them. Called by every invocation (it holds barriers).
-fn grazing_rays(li: u32, wid: vec2<u32>, marched: bool, px: vec2<f32>, s: Shaded, e: f32) -> bool {
+// The reach limit of the pixel `pix` (`far_m`).
+fn set_far(pix: vec2<u32>) {
     let full = vec2<u32>(f.out_size);
-    wg_seen[li] = vec4<f32>(s.seen, select(0.0, 1.0, marched));
-    wg_reach[li] = s.reach;
-    workgroupBarrier();
-    let need = marched && s.one_ray && grazing(px) && differs_from_neighbours(li, s.seen);
-    wg_need[li] = select(0u, 1u, need);
-    workgroupBarrier();
-    if (li == 0u) {
-        var t = 0u;
-        for (var i = 0u; i < 64u; i++) {
-            t += wg_need[i];
-        }
-        wg_needed = t;
+    far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
+}
+
+// Marks the cell `i` (row-major) cut short where this invocation's rays were.
+fn mark_cut(i: u32) {
+    if (local_count[C_CUT] != 0u) {
+        atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));
     }
-    let jobs = workgroupUniformLoad(&wg_needed) * GRAZE_EXTRA;
-    for (var round = 0u; round < (jobs + 63u) / 64u; round++) {
-        let job = round * 64u + li;
-        if (job < jobs) {
-            // The job's pixel: the (job / GRAZE_EXTRA)-th that needs the rays.
-            let want = job / GRAZE_EXTRA;
-            var owner = 0u;
-            var seen_n = 0u;
-            for (var i = 0u; i < 64u; i++) {
-                owner = select(owner, i, wg_need[i] == 1u && seen_n == want);
-                seen_n += wg_need[i];
-            }
-            let opix = pixel_of(wid * 8u + vec2<u32>(owner & 7u, owner >> 3u));
-            let opx = vec2<f32>(opix) + 0.5;
-            far_m = ray_far[min(opix.y * full.x + opix.x, arrayLength(&ray_far) - 1u)];
-            let o = refine_ray(opx, pixel_jitter(opx), job % GRAZE_EXTRA, wg_reach[owner], e);
-            wg_ray_c[job] = o.c;
-            wg_ray_b[job] = vec4<f32>(o.bg, o.dist);
-        }
-    }
-    workgroupBarrier();
-    return need;
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn main(
     @builtin(global_invocation_id) id: vec3<u32>,
-    @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
     if (li < N_COUNTERS) {
@@ -786,41 +794,31 @@ fn main(
     }
     workgroupBarrier();
     // One invocation per subset cell: the cell's pixel this frame (every pixel when n is 1).
-    // Every pixel first with its one ray (or the limb's or a silhouette's two); then, once the
-    // workgroup's pictures are known, the grazing pixels that need them take more rays.
+    // Every pixel with its first ray; the pixels that take more are left for `rework`.
     let n = max(u32(f.subset_n), 1u);
-    let full = vec2<u32>(f.out_size);
-    let cells = (full + vec2<u32>(n - 1u)) / n;
+    let cells = (vec2<u32>(f.out_size) + vec2<u32>(n - 1u)) / n;
     let marched = all(id.xy < cells);
-    let pix = pixel_of(id.xy);
-    let px = vec2<f32>(pix) + 0.5;
-    let e = shown_at();
-    var s = Shaded(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), false, vec2<f32>(-1.0));
+    let px = vec2<f32>(pixel_of(id.xy)) + 0.5;
+    var s = Shaded(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), false, vec2<f32>(-1.0), 1.0);
     if (marched) {
         local_count[C_RAYS] = 1u;
-        far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
-        s = shade_pixel(px, pixel_jitter(px));
+        set_far(pixel_of(id.xy));
+        s = first_ray(px, pixel_jitter(px));
     }
-    // Only where the frame asks for it, compiled out elsewhere (`feature`): a CPU driver pays
-    // for a second call site of the march, taken or not (a tenth of `fast`'s time on lavapipe).
-    var need = false;
+    var more = marched && !s.one_ray;
+    // Only where the frame asks for it, compiled out elsewhere (`feature`).
     if (feature(FLAG_GRAZE) && !feature(FLAG_NO_SKY)) {
-        need = grazing_rays(li, wid.xy, marched, px, s, e);
+        let graze = needs_grazing_rays(li, marched, px, s);
+        more = more || graze;
     }
     if (marched) {
-        if (need) {
-            var rank = 0u;
-            for (var i = 0u; i < li; i++) {
-                rank += wg_need[i];
-            }
-            s = refined(s, rank);
-        }
+        // The first ray's picture; a reworked pixel's is written over by `rework`.
         textureStore(out_cloud, vec2<i32>(id.xy), s.cloud);
         textureStore(out_scene, vec2<i32>(id.xy), s.scene);
-        if (local_count[C_CUT] != 0u) {
-            let i = id.y * cells.x + id.x;
-            atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));
+        if (more) {
+            leave_for_rework(id.xy, s);
         }
+        mark_cut(id.y * cells.x + id.x);
         for (var k = 0u; k < N_COUNTERS; k++) {
             if (local_count[k] != 0u) {
                 atomicAdd(&wg_count[k], local_count[k]);
@@ -832,6 +830,48 @@ fn main(
         let v = atomicLoad(&wg_count[li]);
         if (v != 0u) {
             atomicAdd(&counters[li], v);
+        }
+    }
+}
+
+// The pixels `main` left (`ReworkList`), `GRAZE_EXTRA` invocations each, one a ray (a split
+// pixel's one extra ray leaves three idle): a SIMD lane group then marches neighbouring rays of
+// two pixels, not one ray each of pixels far apart, whose step counts differ more. The pixel's
+// first invocation averages them.
+@compute @workgroup_size(REWORK_GROUP, 1, 1)
+fn rework(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let slot = id.x / GRAZE_EXTRA;
+    let k = id.x % GRAZE_EXTRA;
+    let live = slot < min(atomicLoad(&rework_list.count), arrayLength(&rework_list.entries));
+    var en = ReworkEntry(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), 0.0, vec2<f32>(0.0), 0u, 0u);
+    if (live) {
+        en = rework_list.entries[slot];
+    }
+    let cell = vec2<u32>(en.cell & 0xffffu, en.cell >> 16u);
+    let pix = pixel_of(cell);
+    let px = vec2<f32>(pix) + 0.5;
+    if (k < en.rays) {
+        set_far(pix);
+        let o = extra_ray(px, pixel_jitter(px), k, en, shown_at());
+        wg_ray_c[li] = o.c;
+        wg_ray_b[li] = vec4<f32>(o.bg, o.dist);
+    }
+    workgroupBarrier();
+    if (live && k == 0u) {
+        local_count[C_REWORK] = 1u;
+        let s = reworked(en, li);
+        textureStore(out_cloud, vec2<i32>(cell), s.cloud);
+        textureStore(out_scene, vec2<i32>(cell), s.scene);
+    }
+    let n = max(u32(f.subset_n), 1u);
+    let cells_x = (u32(f.out_size.x) + n - 1u) / n;
+    mark_cut(cell.y * cells_x + cell.x);
+    for (var c = 0u; c < N_COUNTERS; c++) {
+        if (local_count[c] != 0u) {
+            atomicAdd(&counters[c], local_count[c]);
         }
     }
 }

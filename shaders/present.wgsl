@@ -107,7 +107,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             // step's grain asks (common.wgsl `resolve_weights`). Not for the score's top-down
             // frames (a mask view, where a blur only moves edges).
             // Not across the Earth's limb: a pixel the limb crosses is the mean of its own rays
-            // (march.wgsl `shade_pixel`), and the rows beside it show other things (sky, sea).
+            // (march.wgsl `first_ray`, `rework`), and the rows beside it show other things (sky, sea).
             // Nor across ground's silhouette (a mountain's edge against the cloud or sky past
             // it): there the blend drew the far deck a pixel down over the rock. A pixel shows
             // ground where its cloud is under half opaque and its distance (the scene texture's

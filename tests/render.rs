@@ -628,6 +628,26 @@ fn the_limb_row_shows_what_its_pixels_cover() {
     );
 }
 
+/// A pixel that takes more than one ray is marched again by a second dispatch, from the list
+/// the first leaves (march.wgsl `rework`): in the bench's dusk scene at `fast` (no grazing rays)
+/// that is the row the limb crosses, one or two pixels a column, and their pictures are the
+/// mean of their rays (the test above); a top-down view lists none and skips the dispatch.
+#[test]
+fn the_limb_row_alone_is_marched_again() {
+    let sample = stratus::scenes::synthetic();
+    let map = sample.map().expect("the sample ingests");
+    let scene = sample.scene("horizon-dusk").expect("the bench's scene");
+    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let s = Settings::new(Preset::Fast, time);
+    let limb = render(&map, scene.view, 160, 90, &s).stats.reworked;
+    assert!(
+        (160..=320).contains(&limb),
+        "{limb} pixels marched again at the limb, not one or two a column of 160"
+    );
+    let top = render(&map, View::TopDown, 160, 90, &s).stats.reworked;
+    assert_eq!(top, 0, "a top-down view marched {top} pixels again");
+}
+
 /// The same for a mountain's silhouette (the bench's over-terrain scene, the plateau's far
 /// edge against the overcast past it): a pixel it crosses takes a ray on each side, found by
 /// bisecting the pixel (march.wgsl `terrain_share`), and the resolve does not blend across it.
@@ -644,7 +664,7 @@ fn a_mountain_silhouette_shows_what_its_pixels_cover() {
 
 /// The same for a far deck's top seen edge-on (the bench's inside-layer scene from 4.5 km: the
 /// rows just under the horizontal): a pixel whose ray grazes the layers takes four more rays
-/// down its height where its picture differs from a neighbour's (march.wgsl `grazing_rays`),
+/// down its height where its picture differs from a neighbour's (march.wgsl `needs_grazing_rays`),
 /// and the resolve blends it only along its row. `balanced` (`MarchParams::graze`, on by
 /// default). Off (one ray, the resolve across rows): the deck's row at RMSE 0.029, the picture
 /// at 0.0049; on, 0.0101 and 0.0026 (lavapipe, 160×90; the earlier two-then-four rays in every

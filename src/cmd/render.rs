@@ -216,13 +216,14 @@ pub fn print_timings(out: &stratus::render::Output) -> std::io::Result<()> {
     let s = out.stats;
     let px = s.rays.max(1) as f64;
     out!(
-        "per pixel: {:.1} steps, {:.1} density samples, {:.1} light samples; skipped {}, early exits {}, samples outside region {}, rays cut short {}",
+        "per pixel: {:.1} steps, {:.1} density samples, {:.1} light samples; skipped {}, early exits {}, samples outside region {}, rays cut short {}, pixels reworked {}",
         s.steps as f64 / px,
         s.density_samples as f64 / px,
         s.light_samples as f64 / px,
         s.skipped_steps,
         s.early_exits,
         s.outside_samples,
-        s.cut_rays
+        s.cut_rays,
+        s.reworked
     )
 }

@@ -32,6 +32,7 @@ crate::gpu_struct! {
         pub skipped_steps: u32,
         pub early_exits: u32,
         pub cut_rays: u32,
+        pub reworked: u32,
     }
 }
 
@@ -73,6 +74,8 @@ pub const BINDINGS: &[Binding] = &[
     // The exposure the present stage last showed (render::exposure): the limb's rays are
     // averaged as they will be seen.
     b(GROUP_TARGET, 4, Resource::StorageRead),
+    // The pixels left for the second dispatch ([`rework_buffer`]).
+    b(GROUP_TARGET, 5, Resource::StorageRw),
 ];
 
 /// Every binding of march.wgsl with the scene's group (render::scene) that it shares.
@@ -104,8 +107,44 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     })
 }
 
+/// The rework list's header (march.wgsl `ReworkList`: the workgroups, the count, padding to its
+/// entries' alignment) and one entry's size.
+const REWORK_HEADER: u64 = 16;
+const REWORK_ENTRY: u64 = 64;
+/// The rework list's entries one workgroup of its dispatch takes (march.wgsl: `REWORK_GROUP`
+/// invocations, `GRAZE_EXTRA` a pixel).
+const REWORK_PER_GROUP: u64 = 16;
+
+/// The list of pixels a `width`×`height` march leaves for its second dispatch (march.wgsl
+/// `ReworkList`): those the limb or a silhouette splits, and the grazing pixels that take more
+/// rays. Room for a quarter of the pixels (at least 4096, at most what one dispatch's
+/// workgroups and one binding hold); a pixel past it keeps its first ray.
+pub fn rework_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
+    let most = (65_535 * REWORK_PER_GROUP).min((128 << 20) / REWORK_ENTRY - 1);
+    let entries = (width as u64 * height as u64).div_ceil(4).clamp(4096, most);
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("rework list"),
+        size: REWORK_HEADER + entries * REWORK_ENTRY,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// A march's output buffers besides its textures: the cut-ray mask and the rework list.
+#[derive(Clone, Copy)]
+pub struct RayBuffers<'a> {
+    pub cut_mask: &'a wgpu::Buffer,
+    pub rework: &'a wgpu::Buffer,
+}
+
 pub struct MarchPass {
     pipelines: StagePipelines,
+    /// The second dispatch (march.wgsl `rework`), over the pixels the first left.
+    rework: StagePipelines,
+    /// Its indirect arguments: the first's workgroup count, copied from the rework list.
+    rework_args: wgpu::Buffer,
     layouts: [wgpu::BindGroupLayout; 3],
     pub uniforms: wgpu::Buffer,
     pub counters: wgpu::Buffer,
@@ -199,8 +238,11 @@ impl MarchPass {
                 R::TextureView(&cells),
             ],
         );
+        let pipelines = StagePipelines::new("march", layout, module, &[], 0);
         MarchPass {
-            pipelines: StagePipelines::new("march", layout, module, &[], 0),
+            rework: pipelines.entry("march: rework", "rework"),
+            rework_args: rework_args(gpu),
+            pipelines,
             layouts,
             uniforms,
             counters,
@@ -255,7 +297,7 @@ impl MarchPass {
         &self,
         gpu: &Gpu,
         (cloud, scene): (&wgpu::TextureView, &wgpu::TextureView),
-        cut_mask: &wgpu::Buffer,
+        rays: RayBuffers<'_>,
         far: &wgpu::Buffer,
         exposure: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
@@ -265,37 +307,120 @@ impl MarchPass {
             &self.layouts[2],
             [
                 wgpu::BindingResource::TextureView(cloud),
-                wgpu::BindingResource::Buffer(cut_mask.as_entire_buffer_binding()),
+                wgpu::BindingResource::Buffer(rays.cut_mask.as_entire_buffer_binding()),
                 wgpu::BindingResource::TextureView(scene),
                 wgpu::BindingResource::Buffer(far.as_entire_buffer_binding()),
                 wgpu::BindingResource::Buffer(exposure.as_entire_buffer_binding()),
+                wgpu::BindingResource::Buffer(rays.rework.as_entire_buffer_binding()),
             ],
         )
     }
 
-    /// `variant`: the genera's code the frame's map needs ([`Variant::of`] its flags).
+    /// `variant`: the genera's code the frame's map needs ([`Variant::of`] its flags). Two
+    /// dispatches: every pixel's first ray, then (indirect, sized by their count) the pixels that
+    /// take more, from `rework`, the list the target's bind group holds.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         gpu: &Gpu,
         variant: Variant,
         enc: &mut wgpu::CommandEncoder,
-        map_bind: &wgpu::BindGroup,
-        target_bind: &wgpu::BindGroup,
-        scene_bind: &wgpu::BindGroup,
+        (map_bind, target_bind, scene_bind): (&wgpu::BindGroup, &wgpu::BindGroup, &wgpu::BindGroup),
+        rework: &wgpu::Buffer,
         (width, height): (u32, u32),
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        enc.clear_buffer(rework, 0, Some(REWORK_HEADER));
+        // A top-down view has no limb, silhouette or grazing pixel: nothing is left.
+        let second = !variant.no_sky();
+        let (first_ts, second_ts) = match timestamps {
+            Some(t) if second => split_writes(t),
+            t => (t, None),
+        };
+        let groups = [map_bind, target_bind, scene_bind];
         // `width`×`height` invocations: the pixels, or the subset cells of a reprojected frame.
+        {
+            let mut pass = self.begin(
+                enc,
+                "march",
+                &self.pipelines,
+                gpu,
+                variant,
+                groups,
+                first_ts,
+            );
+            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+        }
+        if second {
+            enc.copy_buffer_to_buffer(rework, 0, &self.rework_args, 0, Some(4));
+            let mut pass = self.begin(
+                enc,
+                "march: rework",
+                &self.rework,
+                gpu,
+                variant,
+                groups,
+                second_ts,
+            );
+            pass.dispatch_workgroups_indirect(&self.rework_args, 0);
+        }
+    }
+
+    /// A compute pass with one of the stage's pipelines and its bind groups set.
+    #[allow(clippy::too_many_arguments)]
+    fn begin<'e>(
+        &self,
+        enc: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        pipelines: &StagePipelines,
+        gpu: &Gpu,
+        variant: Variant,
+        [map_bind, target_bind, scene_bind]: [&wgpu::BindGroup; 3],
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> wgpu::ComputePass<'e> {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("march"),
+            label: Some(label),
             timestamp_writes: timestamps,
         });
-        pass.set_pipeline(&self.pipelines.get(gpu, variant));
+        pass.set_pipeline(&pipelines.get(gpu, variant));
         pass.set_bind_group(GROUP_DEVICE, &self.device_bind, &[]);
         pass.set_bind_group(GROUP_MAP, map_bind, &[]);
         pass.set_bind_group(GROUP_TARGET, target_bind, &[]);
         pass.set_bind_group(SCENE_GROUP, scene_bind, &[]);
-        pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+        pass
     }
+}
+
+/// The second dispatch's indirect arguments: x copied from the rework list before each
+/// dispatch, y and z one.
+fn rework_args(gpu: &Gpu) -> wgpu::Buffer {
+    let args = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("rework dispatch"),
+        size: 12,
+        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let xyz: Vec<u8> = [0u32, 1, 1].iter().flat_map(|v| v.to_le_bytes()).collect();
+    gpu.queue.write_buffer(&args, 0, &xyz);
+    args
+}
+
+/// One pass's timestamp writes split over two passes: the first's start, the second's end.
+fn split_writes(
+    t: wgpu::ComputePassTimestampWrites<'_>,
+) -> (
+    Option<wgpu::ComputePassTimestampWrites<'_>>,
+    Option<wgpu::ComputePassTimestampWrites<'_>>,
+) {
+    let part = |begin: Option<u32>, end: Option<u32>| {
+        (begin.is_some() || end.is_some()).then_some(wgpu::ComputePassTimestampWrites {
+            query_set: t.query_set,
+            beginning_of_pass_write_index: begin,
+            end_of_pass_write_index: end,
+        })
+    };
+    (
+        part(t.beginning_of_pass_write_index, None),
+        part(None, t.end_of_pass_write_index),
+    )
 }

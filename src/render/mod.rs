@@ -408,9 +408,8 @@ impl Renderer {
             gpu,
             pipeline::Variant::of(uniforms.flags),
             enc,
-            map_bind,
-            t.march_bind(step.set, split),
-            shadow.scene_bind(),
+            (map_bind, t.march_bind(step.set, split), shadow.scene_bind()),
+            &t.rework,
             step.dispatch,
             timer.map(|q| {
                 if split {

@@ -46,6 +46,11 @@ impl Variant {
     pub fn cells(self) -> bool {
         self.0 & flags::CELLS != 0
     }
+
+    /// Whether it is the top-down view's (no sky, limb or terrain behind the cloud).
+    pub fn no_sky(self) -> bool {
+        self.0 & flags::NO_SKY != 0
+    }
 }
 
 /// One cloud-evaluating stage's pipelines (march, shadow, section), one per [`Variant`], each
@@ -58,6 +63,8 @@ pub struct StagePipelines {
     constants: Vec<(&'static str, f64)>,
     /// The feature flags the stage's code does not read: left out of its variants.
     unread: u32,
+    /// The module's entry point (`main` unless [`StagePipelines::entry`] names another).
+    entry: &'static str,
     compiled: Mutex<HashMap<Variant, wgpu::ComputePipeline>>,
 }
 
@@ -75,7 +82,24 @@ impl StagePipelines {
             module,
             constants: constants.to_vec(),
             unread,
+            entry: "main",
             compiled: Mutex::default(),
+        }
+    }
+
+    /// The same stage's pipelines of another entry point of its module.
+    pub fn entry(&self, label: &str, entry: &'static str) -> StagePipelines {
+        StagePipelines {
+            label: label.to_string(),
+            entry,
+            compiled: Mutex::default(),
+            ..StagePipelines::new(
+                label,
+                self.layout.clone(),
+                self.module.clone(),
+                &self.constants,
+                self.unread,
+            )
         }
     }
 
@@ -88,7 +112,8 @@ impl StagePipelines {
                 let label = format!("{} (features {:#x})", self.label, v.0);
                 let mut constants = self.constants.clone();
                 constants.extend([("FIXED_FEATURES", 1.0), ("FEATURES", f64::from(v.0))]);
-                compute_pipeline(gpu, &label, &self.layout, &self.module, &constants)
+                let (layout, module) = (&self.layout, &self.module);
+                entry_pipeline(&gpu.device, &label, layout, module, self.entry, &constants)
             })
             .clone()
     }

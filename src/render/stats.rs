@@ -26,6 +26,9 @@ pub struct Stats {
     /// Rays the driver stopped before their march ended (Mesa llvmpipe's cap on a shader's loop
     /// iterations; only `reference`'s long rays reach it). Zero on a GPU.
     pub cut_rays: u64,
+    /// Pixels that took more rays than their first, in the march's second dispatch (a limb's
+    /// or a silhouette's split, a grazing pixel's extra rays).
+    pub reworked: u64,
 }
 
 impl From<Counters> for Stats {
@@ -40,6 +43,7 @@ impl From<Counters> for Stats {
             skipped_steps: c.skipped_steps.into(),
             early_exits: c.early_exits.into(),
             cut_rays: c.cut_rays.into(),
+            reworked: c.reworked.into(),
         }
     }
 }
@@ -328,6 +332,7 @@ mod tests {
             skipped_steps: 7,
             early_exits: 8,
             cut_rays: 9,
+            reworked: 10,
         };
         let mut raw = vec![0u8; copy_buffer_size() as usize];
         raw[..COUNTERS_BYTES as usize].copy_from_slice(bytemuck::bytes_of(&c));
@@ -347,9 +352,10 @@ mod tests {
                 s.outside_samples,
                 s.skipped_steps,
                 s.early_exits,
-                s.cut_rays
+                s.cut_rays,
+                s.reworked
             ],
-            [6, 7, 8, 9]
+            [6, 7, 8, 9, 10]
         );
     }
 }

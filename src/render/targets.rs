@@ -28,7 +28,7 @@ impl FrameSet {
     pub(super) fn new(
         r: Stages<'_>,
         size: (u32, u32),
-        cut_mask: &wgpu::Buffer,
+        rays: march::RayBuffers<'_>,
         far: &wgpu::Buffer,
     ) -> FrameSet {
         let (cloud, scene) = frame_textures(r.gpu, size);
@@ -37,7 +37,7 @@ impl FrameSet {
         FrameSet {
             march_bind: r
                 .march
-                .bind_target(r.gpu, (&cv, &sv), cut_mask, far, &r.exposure.state),
+                .bind_target(r.gpu, (&cv, &sv), rays, far, &r.exposure.state),
             present_bind: r.present.bind_target(r.gpu, &cv, &sv),
             exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
             cloud,
@@ -104,13 +104,13 @@ impl History {
         (width, height): (u32, u32),
         n: u32,
         first: &FrameSet,
-        cut_mask: &wgpu::Buffer,
+        rays: march::RayBuffers<'_>,
         far: &wgpu::Buffer,
     ) -> History {
         let cells = (width.div_ceil(n), height.div_ceil(n));
         let (fc, fs) = frame_textures(r.gpu, cells);
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let other = FrameSet::new(r, (width, height), cut_mask, far);
+        let other = FrameSet::new(r, (width, height), rays, far);
         let fresh = [view(&fc), view(&fs)];
         let sets = [
             [view(&first.cloud), view(&first.scene)],
@@ -131,7 +131,7 @@ impl History {
             fresh_march_bind: r.march.bind_target(
                 r.gpu,
                 (&fresh[0], &fresh[1]),
-                cut_mask,
+                rays,
                 far,
                 &r.exposure.state,
             ),
@@ -158,6 +158,8 @@ pub(super) struct Targets {
     pub(super) color: Option<wgpu::Texture>,
     /// One bit per march pixel: the ray was cut short (see `Stats::cut_rays`).
     pub(super) cut_mask: wgpu::Buffer,
+    /// The pixels the march leaves for its second dispatch (march::rework_buffer).
+    pub(super) rework: wgpu::Buffer,
     /// Each pixel's farthest reach (m): a host's depth (render::embed) or the one unlimited
     /// value.
     pub(super) far: wgpu::Buffer,
@@ -181,12 +183,18 @@ impl Targets {
         far: wgpu::Buffer,
     ) -> Targets {
         let cut_mask = march::cut_mask_buffer(r.gpu, width, height);
+        let rework = march::rework_buffer(r.gpu, width, height);
+        let rays = march::RayBuffers {
+            cut_mask: &cut_mask,
+            rework: &rework,
+        };
         Targets {
             width,
             height,
-            frame: FrameSet::new(r, (width, height), &cut_mask, &far),
+            frame: FrameSet::new(r, (width, height), rays, &far),
             color: None,
             cut_mask,
+            rework,
             far,
             history: None,
             reprojected: false,
@@ -329,7 +337,11 @@ impl Renderer {
             return None;
         };
         if t.history.as_ref().is_none_or(|h| h.n != n) {
-            t.history = Some(History::new(stages, size, n, &t.frame, &t.cut_mask, &t.far));
+            let rays = march::RayBuffers {
+                cut_mask: &t.cut_mask,
+                rework: &t.rework,
+            };
+            t.history = Some(History::new(stages, size, n, &t.frame, rays, &t.far));
         }
         let h = t.history.as_mut()?;
         let now = reproject::FrameKey {

@@ -403,6 +403,7 @@ fn counter_const(field: &str) -> &'static str {
         "skipped_steps" => "C_SKIPPED",
         "early_exits" => "C_EARLY",
         "cut_rays" => "C_CUT",
+        "reworked" => "C_REWORK",
         _ => "C_UNKNOWN",
     }
 }
