@@ -108,12 +108,15 @@ pub fn cut_mask_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
 }
 
 /// The rework list's header (march.wgsl `ReworkList`: the workgroups, the count, padding to its
-/// entries' alignment) and one entry's size.
-const REWORK_HEADER: u64 = 16;
-const REWORK_ENTRY: u64 = 64;
-/// The rework list's entries one workgroup of its dispatch takes (march.wgsl: `REWORK_GROUP`
-/// invocations, `GRAZE_EXTRA` a pixel).
-const REWORK_PER_GROUP: u64 = 16;
+/// entries' alignment) and one entry's size (`ReworkEntry`): checked by render::contract.
+pub(crate) const REWORK_HEADER: u64 = 16;
+pub(crate) const REWORK_ENTRY: u64 = 64;
+/// `rework`'s workgroup (march.wgsl `REWORK_GROUP` invocations) and its invocations a pixel
+/// (`GRAZE_EXTRA`, one extra ray each).
+pub(crate) const REWORK_GROUP: u32 = 64;
+pub(crate) const GRAZE_EXTRA: u32 = 4;
+/// The rework list's entries one workgroup of its dispatch takes.
+const REWORK_PER_GROUP: u64 = (REWORK_GROUP / GRAZE_EXTRA) as u64;
 
 /// The list of pixels a `width`×`height` march leaves for its second dispatch (march.wgsl
 /// `ReworkList`): those the limb or a silhouette splits, and the grazing pixels that take more

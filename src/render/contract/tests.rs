@@ -384,12 +384,45 @@ fn shared_constants() -> Vec<(&'static str, Shared)> {
             "N_COUNTERS",
             U32((std::mem::size_of::<Counters>() / 4) as u32),
         ),
+        // The rework list's dispatch (render::march sizes the list and its workgroups).
+        ("REWORK_GROUP", U32(crate::render::march::REWORK_GROUP)),
+        ("GRAZE_EXTRA", U32(crate::render::march::GRAZE_EXTRA)),
     ];
     // One index constant per counter, named after its field: `C_RAYS` is `Counters::rays`.
     for f in Counters::fields() {
         v.push((counter_const(f.name), U32((f.offset / 4) as u32)));
     }
     v
+}
+
+/// The rework list render::march sizes and clears (its entries' size, its header's) is laid out
+/// so in march.wgsl.
+#[test]
+fn the_rework_list_is_laid_out_as_the_host_sizes_it() {
+    use crate::render::march::{REWORK_ENTRY, REWORK_HEADER};
+    let m = parse("march", crate::render::shader::MARCH);
+    let find = |name: &str| {
+        m.types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .map(|(_, t)| t.inner.clone())
+    };
+    let Some(TypeInner::Struct { span, .. }) = find("ReworkEntry") else {
+        panic!("march.wgsl declares no struct ReworkEntry");
+    };
+    assert_eq!(u64::from(span), REWORK_ENTRY, "ReworkEntry's size");
+    let Some(TypeInner::Struct { members, .. }) = find("ReworkList") else {
+        panic!("march.wgsl declares no struct ReworkList");
+    };
+    let entries = members
+        .iter()
+        .find(|m| m.name.as_deref() == Some("entries"))
+        .expect("ReworkList has its entries");
+    assert_eq!(
+        u64::from(entries.offset),
+        REWORK_HEADER,
+        "ReworkList's header"
+    );
 }
 
 fn counter_const(field: &str) -> &'static str {
