@@ -665,6 +665,8 @@ struct ReworkList {
 // `rework`'s workgroup: a multiple of `GRAZE_EXTRA`, so a pixel's jobs share one.
 const REWORK_GROUP: u32 = 64u;
 
+// Appends the invocation's pixel (its cell, its first ray) to the list, and a workgroup to
+// `rework`'s dispatch at every `REWORK_GROUP / GRAZE_EXTRA`-th entry.
 fn leave_for_rework(cell: vec2<u32>, s: Shaded) {
     let slot = atomicAdd(&rework_list.count, 1u);
     if (slot < arrayLength(&rework_list.entries)) {
