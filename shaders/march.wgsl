@@ -758,10 +758,18 @@ fn needs_grazing_rays(li: u32, marched: bool, px: vec2<f32>, s: Shaded) -> bool 
     return one && grazing(px) && differs_from_neighbours(li, s.seen);
 }
 
+// The subset cell's side (px; 1 when every pixel is marched) and the cells across the output.
+fn subset_n() -> u32 {
+    return max(u32(f.subset_n), 1u);
+}
+
+fn subset_cells() -> vec2<u32> {
+    return (vec2<u32>(f.out_size) + vec2<u32>(subset_n() - 1u)) / subset_n();
+}
+
 // The march pixel of the invocation at `id` (its subset cell's pixel this frame).
 fn pixel_of(id: vec2<u32>) -> vec2<u32> {
-    let n = max(u32(f.subset_n), 1u);
-    return min(id * n + vec2<u32>(f.subset_offset), vec2<u32>(f.out_size) - 1u);
+    return min(id * subset_n() + vec2<u32>(f.subset_offset), vec2<u32>(f.out_size) - 1u);
 }
 
 // The step's phase at a pixel: interleaved gradient noise (Jimenez 2014), shifted per frame.
@@ -779,9 +787,10 @@ fn set_far(pix: vec2<u32>) {
     far_m = ray_far[min(pix.y * full.x + pix.x, arrayLength(&ray_far) - 1u)];
 }
 
-// Marks the cell `i` (row-major) cut short where this invocation's rays were.
-fn mark_cut(i: u32) {
+// Marks the subset cell `cell` cut short where this invocation's rays were.
+fn mark_cut(cell: vec2<u32>) {
     if (local_count[C_CUT] != 0u) {
+        let i = cell.y * subset_cells().x + cell.x;
         atomicOr(&cut_mask[i >> 5u], 1u << (i & 31u));
     }
 }
@@ -797,9 +806,7 @@ fn main(
     workgroupBarrier();
     // One invocation per subset cell: the cell's pixel this frame (every pixel when n is 1).
     // Every pixel with its first ray; the pixels that take more are left for `rework`.
-    let n = max(u32(f.subset_n), 1u);
-    let cells = (vec2<u32>(f.out_size) + vec2<u32>(n - 1u)) / n;
-    let marched = all(id.xy < cells);
+    let marched = all(id.xy < subset_cells());
     let px = vec2<f32>(pixel_of(id.xy)) + 0.5;
     var s = Shaded(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), false, vec2<f32>(-1.0), 1.0);
     if (marched) {
@@ -820,7 +827,7 @@ fn main(
         if (more) {
             leave_for_rework(id.xy, s);
         }
-        mark_cut(id.y * cells.x + id.x);
+        mark_cut(id.xy);
         for (var k = 0u; k < N_COUNTERS; k++) {
             if (local_count[k] != 0u) {
                 atomicAdd(&wg_count[k], local_count[k]);
@@ -868,9 +875,7 @@ fn rework(
         textureStore(out_cloud, vec2<i32>(cell), s.cloud);
         textureStore(out_scene, vec2<i32>(cell), s.scene);
     }
-    let n = max(u32(f.subset_n), 1u);
-    let cells_x = (u32(f.out_size.x) + n - 1u) / n;
-    mark_cut(cell.y * cells_x + cell.x);
+    mark_cut(cell);
     for (var c = 0u; c < N_COUNTERS; c++) {
         if (local_count[c] != 0u) {
             atomicAdd(&counters[c], local_count[c]);
