@@ -131,6 +131,7 @@ const FLAG_BLEND: u32 = 1024u;  // two forecast steps blended along the layer wi
 const FLAG_CELLS: u32 = 2048u;  // the map holds cumulus: cells (render::cells)
 const FLAG_FIXED_EXPOSURE: u32 = 4096u; // Frame.exposure is shown as it is (no adaptation)
 const FLAG_GRAZE: u32 = 8192u;   // grazing pixels that differ from a neighbour take four more rays
+const FLAG_ENVELOPE: u32 = 16384u; // the map holds Cu or Cb: short steps in a cloudy layer's envelope
 
 // The paper's R(v, lo, ho, ln, hn) and SAT.
 fn remap(v: f32, lo: f32, ho: f32, ln: f32, hn: f32) -> f32 {

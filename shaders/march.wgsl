@@ -122,8 +122,8 @@ const ENVELOPE_DZ_M: f32 = 300.0;
 // keeps its length), else shortened to span ENVELOPE_DZ_M.
 fn envelope_step(dt: f32, h: f32, slope: f32) -> f32 {
     // Only maps with cumulus or cumulonimbus: elsewhere the code is compiled out (the bench's
-    // maps: unchanged, picture for picture).
-    if (!feature(FLAG_CELLS) && !feature(FLAG_TOWERS)) {
+    // maps: unchanged, picture for picture). The map's, not the view's (render::reach).
+    if (!feature(FLAG_ENVELOPE)) {
         return dt;
     }
     let dh = slope * dt;

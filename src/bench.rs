@@ -116,6 +116,7 @@ pub fn configs() -> Vec<(String, crate::render::MarchParams)> {
     off("empty-space skip", &|s| s.empty_skip = false);
     off("light LOD", &|s| s.light_lod = false);
     off("clear-air stride", &|s| s.clear_stride = false);
+    off("features by reach", &|s| s.feature_reach = false);
     // The scene's additions (issue 14), each off alone.
     let mut p = b;
     p.column_light = false;

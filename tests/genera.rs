@@ -2,7 +2,10 @@
 //! cells (render::cells), so a broken field shows the ground between its clouds; a
 //! cumulonimbus leans downwind into its anvil.
 
+mod common;
+
 use chrono::{DateTime, Utc};
+use stratus::render::camera::Camera;
 use stratus::render::march::Variant;
 use stratus::render::{Gpu, Preset, Renderer, Settings, View};
 use stratus_ingest::cloudmap::CloudMap;
@@ -495,4 +498,86 @@ fn a_far_cumulus_field_at_a_slant_is_not_lost_between_the_steps() {
             "coverage {c}: mean opacity {mean:.3}, the slab's {model:.3}"
         );
     }
+}
+
+/// The East Asia sample at 325×275, all layers: cumulus over the Arabian Sea and the Bay of
+/// Bengal, cumulonimbus south of Sri Lanka, cirrus over Tibet.
+fn east_asia(dir: &std::path::Path) -> CloudMap {
+    let path = common::real_map(dir, "ea", "0,55,39,105", "325x275");
+    CloudMap::load(&path).unwrap()
+}
+
+/// A view that no cumulus or cumulonimbus column can reach marches without their code, and
+/// draws what the map's variant draws, to the byte. The cameras: north over Tibet and the
+/// cruise view west of it (the nearest cells 1 700 km off), then a turn in 36 headings
+/// north of the Arabian Sea's cumulus, whose field enters and leaves the frame at its edges.
+#[test]
+fn a_view_compiles_only_the_genera_within_its_reach() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = east_asia(dir.path());
+    let time = DateTime::parse_from_rfc3339("2011-01-15T06:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
+    let mut r = Renderer::new(Gpu::new(None).unwrap(), &map);
+    // A fixed exposure: an adapted one follows the frames before it.
+    let mut on = Settings::new(Preset::Fast, time);
+    on.exposure_auto = false;
+    let mut off = on.clone();
+    off.march.shortcuts.feature_reach = false;
+    let far = [
+        Camera::new(30.5, 86.0, 6000.0, 0.0, 8.0),
+        Camera::new(35.0, 74.0, 12000.0, 60.0, -15.0),
+    ];
+    let turn = (0..36).map(|k| Camera::new(18.0, 62.0, 3000.0, 10.0 * k as f64, -5.0));
+    let mut cells = Vec::new();
+    for cam in far.into_iter().chain(turn) {
+        let view = View::Perspective(cam);
+        let near = r.render(&view, 120, 68, &on).unwrap();
+        let narrowed = r.last_march_variant().unwrap();
+        let all = r.render(&view, 120, 68, &off).unwrap();
+        let whole = r.last_march_variant().unwrap();
+        assert!(whole.cells() && whole.towers(), "{whole:?}");
+        assert!(!narrowed.towers(), "{cam:?}: {narrowed:?}");
+        assert!(near.pixels == all.pixels, "{cam:?}: the pictures differ");
+        assert!(near.cloud == all.cloud, "{cam:?}: the cloud differs");
+        cells.push(narrowed.cells());
+    }
+    assert_eq!(&cells[..2], [false, false]);
+    // The turn sees the cells' field, and turns away from it.
+    assert!(
+        cells[2..].contains(&true) && cells[2..].contains(&false),
+        "{cells:?}"
+    );
+}
+
+/// In real time (the window, a host engine) a frame does not wait for the narrower march to
+/// compile: it draws with the map's variant, the same picture, until a thread has compiled the
+/// narrower one, which later frames take.
+#[test]
+fn a_realtime_frame_does_not_wait_for_a_narrower_march() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = east_asia(dir.path());
+    let time = DateTime::parse_from_rfc3339("2011-01-15T06:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
+    let mut r = Renderer::new(Gpu::new(None).unwrap(), &map);
+    r.set_realtime(true);
+    let mut s = Settings::new(Preset::Fast, time);
+    s.exposure_auto = false;
+    let view = View::Perspective(Camera::new(30.5, 86.0, 6000.0, 0.0, 8.0));
+    let first = r.render(&view, 120, 68, &s).unwrap();
+    assert!(r.last_march_variant().is_some_and(|v| v.cells()));
+    let start = std::time::Instant::now();
+    let later = loop {
+        let out = r.render(&view, 120, 68, &s).unwrap();
+        if r.last_march_variant().is_some_and(|v| !v.cells()) {
+            break out;
+        }
+        assert!(
+            start.elapsed().as_secs() < 600,
+            "the narrower march was not compiled in 10 minutes"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    assert!(first.pixels == later.pixels, "the pictures differ");
 }

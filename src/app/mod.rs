@@ -263,7 +263,8 @@ impl App {
         );
         let ui_renderer =
             egui_wgpu::Renderer::new(&gpu.device, screen.config.format, Default::default());
-        let renderer = Renderer::new(gpu, &self.opts.map);
+        let mut renderer = Renderer::new(gpu, &self.opts.map);
+        renderer.set_realtime(true);
         let timeline = self.opts.timeline.take();
         let valid = moment::slider_base(valid_time(&self.opts.map), timeline.as_ref());
         let rh_cr = LayerKind::ALL.map(LayerKind::default_rh_cr);

@@ -197,6 +197,7 @@ pub fn interpolate(a: &StructurePrepared, b: &StructurePrepared, w: f32) -> Stru
             lerp(&a.texels[3], &b.texels[3]),
         ],
         info: union(&a.info, &b.info),
+        columns: a.columns.union(&b.columns),
     }
 }
 
@@ -228,6 +229,7 @@ mod tests {
             width: 1,
             height: 1,
             texels: [t(v), t(v + 1000.0), t(code), t(v / 100.0)],
+            columns: Default::default(),
             info: StructureInfo {
                 present: true,
                 envelopes: [Some((v, v + 2000.0)), None, None],

@@ -175,6 +175,11 @@ pub mod flags {
     /// horizontal) take four more rays down their height where their picture differs from a
     /// neighbour's (`MarchParams::graze`).
     pub const GRAZE: u32 = 8192;
+    /// The map holds cumulus or cumulonimbus: a step in or into a cloudy layer's envelope spans
+    /// little altitude (march.wgsl `envelope_step`). Set for the whole map, where
+    /// [`CELLS`] and [`TOWERS`] are left out of a frame that cannot reach them (render::reach):
+    /// the steps, and so the pictures, do not change with what is in view.
+    pub const ENVELOPE: u32 = 16384;
 }
 
 fn v3(v: DVec3) -> [f32; 3] {
@@ -345,6 +350,9 @@ fn structure_layers(u: &mut FrameUniforms, inp: &FrameInput<'_>) -> (f32, f32) {
     }
     if st.cells && u.layer_scale.iter().any(|&v| v > 0.0) {
         u.flags |= flags::CELLS;
+    }
+    if u.flags & (flags::CELLS | flags::TOWERS) != 0 {
+        u.flags |= flags::ENVELOPE;
     }
     // The high layer's wind streaks cirrus and carries the anvils of cumulonimbus downwind.
     let towers = u.flags & flags::TOWERS != 0;

@@ -259,6 +259,19 @@ impl MarchPass {
         self.pipelines.compiled()
     }
 
+    /// Whether both dispatches' pipelines of `v` are compiled.
+    pub fn is_ready(&self, v: Variant) -> bool {
+        self.pipelines.is_ready(v) && (v.no_sky() || self.rework.is_ready(v))
+    }
+
+    /// Starts compiling `v`'s pipelines on threads (`StagePipelines::prepare`).
+    pub fn prepare(&self, gpu: &Gpu, v: Variant) {
+        self.pipelines.prepare(gpu, v);
+        if !v.no_sky() {
+            self.rework.prepare(gpu, v);
+        }
+    }
+
     /// The layouts of the device's and the map's groups, which the shadow and section stages
     /// share (`pipeline::cloud_stage`).
     pub fn shared_layouts(&self) -> [&wgpu::BindGroupLayout; 2] {

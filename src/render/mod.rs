@@ -36,6 +36,7 @@ pub mod pipeline;
 pub mod present;
 pub mod preset;
 pub mod profile;
+pub mod reach;
 pub mod readback;
 pub mod reproject;
 pub mod scene;
@@ -159,6 +160,10 @@ pub struct Renderer {
     made: Made,
     /// Made on the first section asked for (`stratus section`); the views never need it.
     section: Option<section::SectionPass>,
+    /// A frame never waits for a pipeline to compile ([`Renderer::set_realtime`]).
+    realtime: bool,
+    /// The variant the last frame marched with.
+    last_variant: Option<pipeline::Variant>,
 }
 
 /// Largest output side (and the limit the adapter sets, whichever is smaller).
@@ -205,6 +210,8 @@ impl Renderer {
             targets: None,
             timer,
             stats,
+            realtime: false,
+            last_variant: None,
             made: Made {
                 map_textures: 1,
                 targets: 0,
@@ -212,6 +219,22 @@ impl Renderer {
             section: None,
             gpu,
         }
+    }
+
+    /// Whether a frame may wait for a pipeline variant it has not compiled (`false`, the
+    /// default: files and benches) or goes on with one it has (`true`: the window, a host
+    /// engine). A view that turns away from the map's cumulus needs a narrower march
+    /// (render::reach), several seconds' compile on a CPU driver: in real time the frame keeps
+    /// the map's variant, which draws the same picture, until the narrower one is compiled on a
+    /// thread.
+    pub fn set_realtime(&mut self, on: bool) {
+        self.realtime = on;
+    }
+
+    /// The variant the last frame's march ran (`None` before the first): the map's genera less
+    /// those out of the view's reach (render::reach).
+    pub fn last_march_variant(&self) -> Option<pipeline::Variant> {
+        self.last_variant
     }
 
     /// The march's variants compiled so far: a frame needing one compiles it (tests check that
@@ -333,7 +356,8 @@ impl Renderer {
         let plan = self.plan_reprojection(view, (width, height), settings);
         let step = self.march_step(plan.as_ref(), &mut uniforms, (width, height));
         self.encode_light(enc, &uniforms, settings);
-        self.encode_march(enc, &uniforms, &step, plan.is_some(), (width, height));
+        let variant = self.march_variant(view, &uniforms, settings);
+        self.encode_march(enc, variant, &step, plan.is_some(), (width, height));
         self.encode_present(enc, settings, pipeline, target);
         Ok(())
     }
@@ -383,11 +407,12 @@ impl Renderer {
     fn encode_march(
         &mut self,
         enc: &mut wgpu::CommandEncoder,
-        uniforms: &frame::FrameUniforms,
+        variant: pipeline::Variant,
         step: &MarchStep,
         reprojected: bool,
         size: (u32, u32),
     ) {
+        self.last_variant = Some(variant);
         let Renderer {
             gpu,
             march,
@@ -406,7 +431,7 @@ impl Renderer {
         let split = step.reproject.is_some();
         march.encode(
             gpu,
-            pipeline::Variant::of(uniforms.flags),
+            variant,
             enc,
             (map_bind, t.march_bind(step.set, split), shadow.scene_bind()),
             &t.rework,
@@ -435,6 +460,33 @@ impl Renderer {
             h.shown = step.set;
             h.frames = h.frames.wrapping_add(1);
         }
+    }
+
+    /// The march's pipeline variant: the frame's, less the genus features that no ray of a
+    /// perspective view can reach (render::reach). Only with region culling: without it a ray
+    /// past the region's edge draws the edge texels' genus.
+    fn march_variant(
+        &self,
+        view: &View,
+        u: &frame::FrameUniforms,
+        settings: &Settings,
+    ) -> pipeline::Variant {
+        let sc = settings.march.shortcuts;
+        let unreached = match view {
+            View::Perspective(cam) if sc.feature_reach && sc.region_cull => {
+                let shell = (f64::from(u.shell_base_m), f64::from(u.shell_top_m));
+                let light = f64::from(settings.march.light_reach_m);
+                let frustum = reach::Frustum::new(cam, f64::from(u.aspect), shell, light);
+                self.weather.structure.columns.unreached(&frustum)
+            }
+            _ => 0,
+        };
+        let want = pipeline::Variant::of(u.flags & !unreached);
+        if self.realtime && unreached & u.flags != 0 && !self.march.is_ready(want) {
+            self.march.prepare(&self.gpu, want);
+            return pipeline::Variant::of(u.flags);
+        }
+        want
     }
 
     /// The frame shown: metered by the exposure stage, then presented into `target`.

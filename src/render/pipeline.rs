@@ -5,8 +5,8 @@
 //! ([`bind`], [`bind_frame_textures`]), and the full-screen draw ([`fullscreen`], [`over_pass`]). The layouts themselves come from each stage's binding
 //! table (render::contract).
 
-use std::collections::HashMap;
-use std::sync::Mutex;
+use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, Mutex};
 
 use super::contract::{self, Binding};
 use super::frame::flags;
@@ -29,7 +29,8 @@ pub const FEATURE_BITS: u32 = flags::STRUCTURE
     | flags::BLEND
     | flags::DETAIL
     | flags::NO_SKY
-    | flags::GRAZE;
+    | flags::GRAZE
+    | flags::ENVELOPE;
 
 impl Variant {
     /// The variant a frame's flags (`frame::flags`) need.
@@ -65,7 +66,14 @@ pub struct StagePipelines {
     unread: u32,
     /// The module's entry point (`main` unless [`StagePipelines::entry`] names another).
     entry: &'static str,
-    compiled: Mutex<HashMap<Variant, wgpu::ComputePipeline>>,
+    compiled: Arc<Mutex<Compiled>>,
+}
+
+/// The variants compiled, and those compiling on a thread ([`StagePipelines::prepare`]).
+#[derive(Default)]
+struct Compiled {
+    ready: HashMap<Variant, wgpu::ComputePipeline>,
+    pending: HashSet<Variant>,
 }
 
 impl StagePipelines {
@@ -83,7 +91,7 @@ impl StagePipelines {
             constants: constants.to_vec(),
             unread,
             entry: "main",
-            compiled: Mutex::default(),
+            compiled: Arc::default(),
         }
     }
 
@@ -92,7 +100,7 @@ impl StagePipelines {
         StagePipelines {
             label: label.to_string(),
             entry,
-            compiled: Mutex::default(),
+            compiled: Arc::default(),
             ..StagePipelines::new(
                 label,
                 self.layout.clone(),
@@ -105,25 +113,66 @@ impl StagePipelines {
 
     /// The pipeline for a frame's variant (compiled on first use).
     pub fn get(&self, gpu: &Gpu, v: Variant) -> wgpu::ComputePipeline {
-        let v = Variant(v.0 & !self.unread);
-        self.lock()
-            .entry(v)
-            .or_insert_with(|| {
-                let label = format!("{} (features {:#x})", self.label, v.0);
-                let mut constants = self.constants.clone();
-                constants.extend([("FIXED_FEATURES", 1.0), ("FEATURES", f64::from(v.0))]);
-                let (layout, module) = (&self.layout, &self.module);
-                entry_pipeline(&gpu.device, &label, layout, module, self.entry, &constants)
-            })
-            .clone()
+        let v = self.key(v);
+        if let Some(p) = self.lock().ready.get(&v) {
+            return p.clone();
+        }
+        let p = self.compile(&gpu.device, v);
+        self.lock().ready.entry(v).or_insert(p).clone()
+    }
+
+    /// Whether `v`'s pipeline is compiled.
+    pub fn is_ready(&self, v: Variant) -> bool {
+        self.lock().ready.contains_key(&self.key(v))
+    }
+
+    /// Starts compiling `v` on a thread, unless it is compiled or compiling: a frame that must
+    /// not wait (the window's) goes on with a variant it has and takes `v` once it is ready.
+    pub fn prepare(&self, gpu: &Gpu, v: Variant) {
+        let v = self.key(v);
+        {
+            let mut c = self.lock();
+            if c.ready.contains_key(&v) || !c.pending.insert(v) {
+                return;
+            }
+        }
+        let stage = StagePipelines {
+            label: self.label.clone(),
+            layout: self.layout.clone(),
+            module: self.module.clone(),
+            constants: self.constants.clone(),
+            unread: self.unread,
+            entry: self.entry,
+            compiled: Arc::clone(&self.compiled),
+        };
+        let device = gpu.device.clone();
+        std::thread::spawn(move || {
+            let p = stage.compile(&device, v);
+            let mut c = stage.lock();
+            c.pending.remove(&v);
+            c.ready.insert(v, p);
+        });
     }
 
     /// The variants compiled so far.
     pub fn compiled(&self) -> Vec<Variant> {
-        self.lock().keys().copied().collect()
+        self.lock().ready.keys().copied().collect()
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Variant, wgpu::ComputePipeline>> {
+    /// The variant as this stage compiles it: without the flags its code does not read.
+    fn key(&self, v: Variant) -> Variant {
+        Variant(v.0 & !self.unread)
+    }
+
+    fn compile(&self, device: &wgpu::Device, v: Variant) -> wgpu::ComputePipeline {
+        let label = format!("{} (features {:#x})", self.label, v.0);
+        let mut constants = self.constants.clone();
+        constants.extend([("FIXED_FEATURES", 1.0), ("FEATURES", f64::from(v.0))]);
+        let (layout, module) = (&self.layout, &self.module);
+        entry_pipeline(device, &label, layout, module, self.entry, &constants)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Compiled> {
         // A poisoned lock only means a thread panicked while compiling: the map is intact.
         self.compiled.lock().unwrap_or_else(|e| e.into_inner())
     }

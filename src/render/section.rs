@@ -99,7 +99,9 @@ pub struct SectionPass {
 impl SectionPass {
     pub fn new(gpu: &Gpu, march: &MarchPass) -> SectionPass {
         // Its frame is a top-down one, whose view the section does not draw.
-        let unread = super::frame::flags::NO_SKY | super::frame::flags::GRAZE;
+        let unread = super::frame::flags::NO_SKY
+            | super::frame::flags::GRAZE
+            | super::frame::flags::ENVELOPE;
         let (pipelines, layout) = super::pipeline::cloud_stage(
             gpu,
             "section",

@@ -21,7 +21,9 @@ use stratus_ingest::region::Region;
 use stratus_ingest::structure::{sample_to_altitude, sample_to_wind, MapStructure};
 use stratus_ingest::weather::CloudType;
 
+use super::frame::flags;
 use super::gpu::Gpu;
+use super::reach::FeatureColumns;
 
 /// What the frame needs from the structure before the march.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,6 +55,8 @@ pub struct Prepared {
     /// base, top, kind, wind.
     pub texels: [Vec<half::f16>; 4],
     pub info: StructureInfo,
+    /// The columns holding cells, towers and streaks (render::reach).
+    pub columns: FeatureColumns,
 }
 
 const CB: u8 = CloudType::Cumulonimbus.code();
@@ -116,6 +120,33 @@ fn is_streaked(code: u8) -> bool {
     )
 }
 
+/// Marks the texels whose streaked genera the march can streak: where the layer's wind, as
+/// the march filters it between texels, can reach the 1 m/s it asks (cloud.wgsl
+/// `column_density`). A bilinear mean of winds is never faster than the fastest it takes, and
+/// the genus look-up reaches a texel beyond its own (its dither): so a texel with no wind of
+/// 1 m/s within two of it draws its cirrus unstreaked, and a map of such texels (a synthetic
+/// map without wind) leaves the streaks' code out.
+fn mark_streaks(bits: &mut [u32], streaked: &[u8], wind: &[half::f16], g: &StructureGrid) {
+    let (w, h) = (g.width as usize, g.height as usize);
+    // Per texel: whether the high layer's wind (R, G), the middle's (B, A) is 1 m/s; a little
+    // under, for the filter's rounding.
+    let fast = |k: usize, at: usize| {
+        let (u, v) = (wind[4 * k + at].to_f32(), wind[4 * k + at + 1].to_f32());
+        u * u + v * v >= 0.98
+    };
+    for k in (0..w * h).filter(|&k| streaked[k] != 0) {
+        let (x, y) = (k % w, k / w);
+        let near = |at: usize| {
+            (y.saturating_sub(2)..(y + 3).min(h))
+                .any(|j| (x.saturating_sub(2)..(x + 3).min(w)).any(|i| fast(j * w + i, at)))
+        };
+        // The high layer's channel streaks along its own wind, the others along the middle's.
+        if (streaked[k] & 0b100 != 0 && near(0)) || (streaked[k] & 0b011 != 0 && near(2)) {
+            bits[k] |= flags::STREAKS;
+        }
+    }
+}
+
 /// Map uv → texture uv of the lattice `g` over `region` (texel centres at whole pixels).
 fn uv_transform(region: &Region, g: &StructureGrid) -> ([f32; 2], [f32; 2]) {
     let (w, h) = (g.width.max(1) as f64, g.height.max(1) as f64);
@@ -172,6 +203,7 @@ impl Prepared {
             width: 1,
             height: 1,
             texels: [zero.clone(), zero.clone(), zero.clone(), zero],
+            columns: FeatureColumns::default(),
             info: StructureInfo {
                 present: false,
                 envelopes,
@@ -197,8 +229,9 @@ impl Prepared {
         let (mut base, mut top) = (Vec::with_capacity(n * 4), Vec::with_capacity(n * 4));
         let (mut kind, mut wind) = (Vec::with_capacity(n * 4), Vec::with_capacity(n * 4));
         let mut towers: Option<(f32, f32)> = None;
-        let mut streaks = false;
-        let mut cells = false;
+        // Per texel: the flags of the features it holds; the channels of its streaked genera.
+        let mut bits = vec![0u32; n];
+        let mut streaked = vec![0u8; n];
         for k in 0..n {
             let alt = |v: u16, fill: f32| sample_to_altitude(v).map_or(fill, |m| m as f32);
             let col: [(f32, f32); 3] = std::array::from_fn(|c| {
@@ -212,9 +245,14 @@ impl Prepared {
             if let Some(tower) = tower_column(conv, (b, t), &mut codes, has) {
                 conv = tower;
                 towers = Some(towers.map_or(conv, |(a, z)| (a.min(conv.0), z.max(conv.1))));
+                bits[k] |= flags::TOWERS;
             }
-            streaks |= (0..3).any(|c| has(c) && is_streaked(codes[c]));
-            cells |= (0..3).any(|c| has(c) && codes[c] == CU);
+            streaked[k] = (0..3)
+                .filter(|&c| has(c) && is_streaked(codes[c]))
+                .fold(0, |acc, c| acc | 1 << c);
+            if (0..3).any(|c| has(c) && codes[c] == CU) {
+                bits[k] |= flags::CELLS;
+            }
             base.extend([b[0], b[1], b[2], conv.0].map(f));
             top.extend([t[0], t[1], t[2], conv.1].map(f));
             kind.extend([codes[0], codes[1], codes[2], 0].map(|c| f(c as f32)));
@@ -229,18 +267,21 @@ impl Prepared {
                 .map(f),
             );
         }
+        mark_streaks(&mut bits, &streaked, &wind, &s.grid);
+        let held = |flag: u32| bits.iter().any(|&b| b & flag != 0);
         // The towers' envelope widens the convective layers' own: the march bounds must hold it.
         let (uv_scale, uv_offset) = uv_transform(&map.meta.region, &s.grid);
         Prepared {
             width: s.grid.width,
             height: s.grid.height,
+            columns: FeatureColumns::new(&s.grid, &bits),
             texels: [base, top, kind, wind],
             info: StructureInfo {
                 present: true,
                 envelopes,
                 towers,
-                streaks,
-                cells,
+                streaks: held(flags::STREAKS),
+                cells: held(flags::CELLS),
                 mean_wind: mean_wind(s),
                 uv_scale,
                 uv_offset,
@@ -254,6 +295,8 @@ pub struct StructureTextures {
     /// base, top, kind, wind.
     pub textures: [wgpu::Texture; 4],
     pub info: StructureInfo,
+    /// Where the map's cells, towers and streaks are (render::reach).
+    pub columns: FeatureColumns,
 }
 
 const LABELS: [&str; 4] = [
@@ -273,6 +316,7 @@ impl StructureTextures {
         StructureTextures {
             textures,
             info: p.info,
+            columns: p.columns.clone(),
         }
     }
 
@@ -286,12 +330,44 @@ impl StructureTextures {
             super::texture::write(gpu, tex, bytemuck::cast_slice(texels), 8);
         }
         self.info = p.info;
+        self.columns = p.columns.clone();
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 7×1 lattice of cirrus in the high layer but the last texel, calm but for texel x's
+    /// wind (`slot` 0: the high layer's u, 2: the middle's).
+    fn streaks_with_wind_at(x: usize, slot: usize, speed: f32) -> Vec<u32> {
+        let g = StructureGrid {
+            width: 7,
+            height: 1,
+            north: 0.0,
+            west: 0.0,
+            dlat: 1.0,
+            dlon: 1.0,
+        };
+        let mut wind = vec![half::f16::ZERO; 7 * 4];
+        wind[4 * x + slot] = half::f16::from_f32(speed);
+        let mut bits = vec![0; 7];
+        let mut streaked = vec![0b100; 7];
+        streaked[6] = 0;
+        mark_streaks(&mut bits, &streaked, &wind, &g);
+        bits
+    }
+
+    #[test]
+    fn cirrus_is_streaked_only_within_two_texels_of_a_wind() {
+        let s = flags::STREAKS;
+        assert_eq!(streaks_with_wind_at(0, 0, 5.0), [s, s, s, 0, 0, 0, 0]);
+        assert_eq!(streaks_with_wind_at(3, 0, 5.0), [0, s, s, s, s, s, 0]);
+        // Calm air (under 1 m/s) streaks nothing; the middle layer's wind not the high layer.
+        assert_eq!(streaks_with_wind_at(3, 0, 0.9), [0; 7]);
+        assert_eq!(streaks_with_wind_at(3, 0, 1.0), [0, s, s, s, s, s, 0]);
+        assert_eq!(streaks_with_wind_at(3, 2, 5.0), [0; 7]);
+    }
 
     #[test]
     fn thin_columns_are_deepened_upward() {

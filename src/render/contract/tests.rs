@@ -366,6 +366,8 @@ fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("FLAG_STREAKS", U32(flags::STREAKS)),
         ("FLAG_BLEND", U32(flags::BLEND)),
         ("FLAG_CELLS", U32(flags::CELLS)),
+        ("FLAG_GRAZE", U32(flags::GRAZE)),
+        ("FLAG_ENVELOPE", U32(flags::ENVELOPE)),
         ("CELL_PERIOD_M", F32(crate::render::cells::PERIOD_M)),
         (
             "REFERENCE_THICKNESS_M",

@@ -176,7 +176,9 @@ impl EmbeddedClouds {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut stage = stage::EmbedStage::new(&gpu);
         stage.prepare(&gpu, formats.color);
-        let renderer = Renderer::new(gpu, map);
+        let mut renderer = Renderer::new(gpu, map);
+        // A host's frame never waits for a pipeline compile.
+        renderer.set_realtime(true);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(EmbedError::Gpu(e.to_string()));
         }
@@ -275,7 +277,8 @@ impl EmbeddedClouds {
         self.stage
             .encode_far(&r.gpu, enc, &frame.camera.depth_model(), look);
         r.encode_light(enc, &uniforms, &self.settings);
-        r.encode_march(enc, &uniforms, &step, false, size);
+        let variant = r.march_variant(&view, &uniforms, &self.settings);
+        r.encode_march(enc, variant, &step, false, size);
         if stratus {
             self.encode_exposure(enc);
         }
