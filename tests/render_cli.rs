@@ -57,6 +57,8 @@ fn renders_a_frame_with_timings() {
         stdout.contains("march") && stdout.contains("per pixel"),
         "{stdout}"
     );
+    // The synthetic sample has cirrus but no wind, no cumulus, no cumulonimbus: no genus code.
+    assert!(stdout.contains("genus code in the march: none"), "{stdout}");
     assert!(String::from_utf8_lossy(&o.stderr).contains("adapter"));
 }
 

@@ -131,6 +131,9 @@ pub fn frame(
     done(&img)?;
     if a.timings {
         print_timings(&out)?;
+        if let Some(v) = r.last_march_variant() {
+            out!("genus code in the march: {}", v.describe_genera())?;
+        }
         if let Some(tl) = &timeline {
             out!(
                 "series: {} of {} step maps decoded",

@@ -48,6 +48,29 @@ impl Variant {
         self.0 & flags::CELLS != 0
     }
 
+    /// Whether it compiles in the cirrus streaks.
+    pub fn streaks(self) -> bool {
+        self.0 & flags::STREAKS != 0
+    }
+
+    /// Which genera's code it holds, for `render --timings`: "cells, towers, streaks", or
+    /// "none" (a map without them, or a view that reaches none: render::reach).
+    pub fn describe_genera(self) -> String {
+        let held: Vec<&str> = [
+            (self.cells(), "cells"),
+            (self.towers(), "towers"),
+            (self.streaks(), "streaks"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect();
+        if held.is_empty() {
+            "none".into()
+        } else {
+            held.join(", ")
+        }
+    }
+
     /// Whether it is the top-down view's (no sky, limb or terrain behind the cloud).
     pub fn no_sky(self) -> bool {
         self.0 & flags::NO_SKY != 0
