@@ -502,9 +502,17 @@ fn a_far_cumulus_field_at_a_slant_is_not_lost_between_the_steps() {
 
 /// The East Asia sample at 325×275, all layers: cumulus over the Arabian Sea and the Bay of
 /// Bengal, cumulonimbus south of Sri Lanka, cirrus over Tibet.
-fn east_asia(dir: &std::path::Path) -> CloudMap {
+/// A renderer over it, and the fast preset at 06 UTC on 2011-01-15 (the map's valid time less
+/// half an hour) with a fixed exposure: an adapted one follows the frames before it.
+fn east_asia(dir: &std::path::Path) -> (Renderer, Settings) {
     let path = common::real_map(dir, "ea", "0,55,39,105", "325x275");
-    CloudMap::load(&path).unwrap()
+    let map = CloudMap::load(&path).unwrap();
+    let time = DateTime::parse_from_rfc3339("2011-01-15T06:00:00Z")
+        .unwrap()
+        .with_timezone(&Utc);
+    let mut s = Settings::new(Preset::Fast, time);
+    s.exposure_auto = false;
+    (Renderer::new(Gpu::new(None).unwrap(), &map), s)
 }
 
 /// A view that no cumulus or cumulonimbus column can reach marches without their code, and
@@ -514,14 +522,7 @@ fn east_asia(dir: &std::path::Path) -> CloudMap {
 #[test]
 fn a_view_compiles_only_the_genera_within_its_reach() {
     let dir = tempfile::tempdir().unwrap();
-    let map = east_asia(dir.path());
-    let time = DateTime::parse_from_rfc3339("2011-01-15T06:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
-    let mut r = Renderer::new(Gpu::new(None).unwrap(), &map);
-    // A fixed exposure: an adapted one follows the frames before it.
-    let mut on = Settings::new(Preset::Fast, time);
-    on.exposure_auto = false;
+    let (mut r, on) = east_asia(dir.path());
     let mut off = on.clone();
     off.march.shortcuts.feature_reach = false;
     let far = [
@@ -556,14 +557,8 @@ fn a_view_compiles_only_the_genera_within_its_reach() {
 #[test]
 fn a_realtime_frame_does_not_wait_for_a_narrower_march() {
     let dir = tempfile::tempdir().unwrap();
-    let map = east_asia(dir.path());
-    let time = DateTime::parse_from_rfc3339("2011-01-15T06:00:00Z")
-        .unwrap()
-        .with_timezone(&Utc);
-    let mut r = Renderer::new(Gpu::new(None).unwrap(), &map);
+    let (mut r, s) = east_asia(dir.path());
     r.set_realtime(true);
-    let mut s = Settings::new(Preset::Fast, time);
-    s.exposure_auto = false;
     let view = View::Perspective(Camera::new(30.5, 86.0, 6000.0, 0.0, 8.0));
     let first = r.render(&view, 120, 68, &s).unwrap();
     assert!(r.last_march_variant().is_some_and(|v| v.cells()));
