@@ -356,40 +356,24 @@ impl MarchPass {
         let groups = [map_bind, target_bind, scene_bind];
         // `width`×`height` invocations: the pixels, or the subset cells of a reprojected frame.
         {
-            let mut pass = self.begin(
-                enc,
-                "march",
-                &self.pipelines,
-                gpu,
-                variant,
-                groups,
-                first_ts,
-            );
+            let stage = ("march", &self.pipelines);
+            let mut pass = self.begin(enc, gpu, stage, variant, groups, first_ts);
             pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
         }
         if second {
             enc.copy_buffer_to_buffer(rework, 0, &self.rework_args, 0, Some(4));
-            let mut pass = self.begin(
-                enc,
-                "march: rework",
-                &self.rework,
-                gpu,
-                variant,
-                groups,
-                second_ts,
-            );
+            let stage = ("march: rework", &self.rework);
+            let mut pass = self.begin(enc, gpu, stage, variant, groups, second_ts);
             pass.dispatch_workgroups_indirect(&self.rework_args, 0);
         }
     }
 
-    /// A compute pass with one of the stage's pipelines and its bind groups set.
-    #[allow(clippy::too_many_arguments)]
+    /// A compute pass (`label`) with one of the stage's pipelines and its bind groups set.
     fn begin<'e>(
         &self,
         enc: &'e mut wgpu::CommandEncoder,
-        label: &str,
-        pipelines: &StagePipelines,
         gpu: &Gpu,
+        (label, pipelines): (&str, &StagePipelines),
         variant: Variant,
         [map_bind, target_bind, scene_bind]: [&wgpu::BindGroup; 3],
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
