@@ -78,7 +78,9 @@ impl Variant {
 }
 
 /// One cloud-evaluating stage's pipelines (march, shadow, section), one per [`Variant`], each
-/// compiled the first time a frame needs it.
+/// compiled the first time a frame needs it. A clone shares the variants compiled (the thread
+/// of [`StagePipelines::prepare`] adds to them).
+#[derive(Clone)]
 pub struct StagePipelines {
     label: String,
     layout: wgpu::PipelineLayout,
@@ -159,15 +161,7 @@ impl StagePipelines {
                 return;
             }
         }
-        let stage = StagePipelines {
-            label: self.label.clone(),
-            layout: self.layout.clone(),
-            module: self.module.clone(),
-            constants: self.constants.clone(),
-            unread: self.unread,
-            entry: self.entry,
-            compiled: Arc::clone(&self.compiled),
-        };
+        let stage = self.clone();
         let device = gpu.device.clone();
         std::thread::spawn(move || {
             let p = stage.compile(&device, v);

@@ -147,7 +147,8 @@ impl Frustum {
 
     /// Whether a column `radius_m` wide around ground direction `dir` can be met.
     fn reaches(&self, dir: DVec3, radius_m: f64) -> bool {
-        let m = radius_m + self.margin_m;
+        // The radius is measured at sea level; at the shell's top the columns are farther apart.
+        let m = radius_m * self.shell.1 / EARTH_R + self.margin_m;
         let a = dir * self.shell.0 - self.position;
         let b = dir * self.shell.1 - self.position;
         if self.sides.iter().any(|n| a.dot(*n) > m && b.dot(*n) > m) {
