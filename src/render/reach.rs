@@ -125,7 +125,7 @@ impl Frustum {
         // Rays leave through the edge pixels' far sides, with the jitter and split rays inside
         // their pixels: a few per cent of the field of view is more than a pixel's width.
         let ty = (cam.fov_deg.to_radians() * 0.5).tan() * 1.05;
-        let tx = ty * aspect * 1.05;
+        let tx = ty * aspect;
         let side = |axis: DVec3, t: f64| (axis - b.forward * t).normalize();
         let sides = [
             side(b.right, tx),

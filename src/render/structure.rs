@@ -128,20 +128,23 @@ fn is_streaked(code: u8) -> bool {
 /// map without wind) leaves the streaks' code out.
 fn mark_streaks(bits: &mut [u32], streaked: &[u8], wind: &[half::f16], g: &StructureGrid) {
     let (w, h) = (g.width as usize, g.height as usize);
-    // Per texel: whether the high layer's wind (R, G), the middle's (B, A) is 1 m/s; a little
-    // under, for the filter's rounding.
-    let fast = |k: usize, at: usize| {
-        let (u, v) = (wind[4 * k + at].to_f32(), wind[4 * k + at + 1].to_f32());
-        u * u + v * v >= 0.98
+    // Per texel, once: whether the high layer's wind (R, G), the middle's (B, A) is 1 m/s; a
+    // little under, for the filter's rounding.
+    let fast = |at: usize| -> Vec<bool> {
+        wind.chunks_exact(4)
+            .map(|t| t[at].to_f32().hypot(t[at + 1].to_f32()) >= 0.99)
+            .collect()
     };
+    let (high, middle) = (fast(0), fast(2));
     for k in (0..w * h).filter(|&k| streaked[k] != 0) {
         let (x, y) = (k % w, k / w);
-        let near = |at: usize| {
+        let near = |fast: &[bool]| {
             (y.saturating_sub(2)..(y + 3).min(h))
-                .any(|j| (x.saturating_sub(2)..(x + 3).min(w)).any(|i| fast(j * w + i, at)))
+                .any(|j| (x.saturating_sub(2)..(x + 3).min(w)).any(|i| fast[j * w + i]))
         };
         // The high layer's channel streaks along its own wind, the others along the middle's.
-        if (streaked[k] & 0b100 != 0 && near(0)) || (streaked[k] & 0b011 != 0 && near(2)) {
+        if (streaked[k] & 0b100 != 0 && near(&high)) || (streaked[k] & 0b011 != 0 && near(&middle))
+        {
             bits[k] |= flags::STREAKS;
         }
     }
