@@ -9,8 +9,12 @@
 @group(2) @binding(0) var<storage, read> exposure: ExposureState;
 
 
-// Set by the pipeline from the preset (render::preset::MarchParams::wide_upsample): the
-// upsample's 4×4 footprint that also resolves the march's jitter, else the four nearest.
+// Set by the pipeline (render::present::Resample): whether the march is smaller than the
+// target (frame.wgsl `march_scale` under 0.99) and is enlarged; if so, from the preset
+// (render::preset::MarchParams::wide_upsample), over a 4×4 footprint that also resolves the
+// march's jitter, else the four nearest. Constants, not the uniform's test: a CPU driver runs
+// both sides of a branch for every pixel.
+override UPSAMPLE: bool = true;
 override WIDE_UPSAMPLE: bool = true;
 
 // Set by the pipeline for a non-sRGB target (a window's Bgra8Unorm, which egui prefers): the
@@ -61,7 +65,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     var c: vec4<f32>;
     let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
     var bg: vec3<f32>;
-    if (f.march_scale < 0.99) {
+    if (UPSAMPLE) {
         // The window marches at a fraction of its size: an edge-aware upsample (a joint
         // bilateral filter on the march's own opacity and depth): a march pixel counts less the
         // more its opacity and distance differ from the nearest one's, so a cloud's edge stays

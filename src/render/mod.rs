@@ -350,9 +350,8 @@ impl Renderer {
         settings.validate()?;
         self.blend_at(settings);
         let mut uniforms = self.uniforms(view, (width, height, target_width), settings)?;
-        let pipeline = self
-            .present
-            .prepare(&self.gpu, target_format, settings.march.wide_upsample);
+        let resample = present::Resample::of(uniforms.march_scale, settings.march.wide_upsample);
+        let pipeline = self.present.prepare(&self.gpu, target_format, resample);
         let plan = self.plan_reprojection(view, (width, height), settings);
         let step = self.march_step(plan.as_ref(), &mut uniforms, (width, height));
         self.encode_light(enc, &uniforms, settings);

@@ -35,19 +35,42 @@ pub fn bindings() -> Vec<Binding> {
     BINDINGS.iter().chain(SCENE_BINDINGS).copied().collect()
 }
 
+/// How the present stage reads the march: at the target's own size (the march's jitter
+/// resolved over 3×3 march pixels), or enlarged from a smaller march (the window's render
+/// scale) over the four nearest march pixels or, `MarchParams::wide_upsample`, a 4×4 footprint
+/// that also resolves the jitter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Resample {
+    Same,
+    Nearest,
+    Wide,
+}
+
+impl Resample {
+    /// For a march of `march_scale` pixels a target pixel (frame.wgsl `march_scale`), with the
+    /// preset's choice of upsample footprint.
+    pub fn of(march_scale: f32, wide_upsample: bool) -> Resample {
+        match (march_scale < 0.99, wide_upsample) {
+            (false, _) => Resample::Same,
+            (true, false) => Resample::Nearest,
+            (true, true) => Resample::Wide,
+        }
+    }
+}
+
 /// A present pipeline made by [`PresentPass::prepare`]; only it makes them, so one always
 /// names a pipeline that exists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PipelineId(usize);
 
-/// The present pipelines (one per target format and upsample footprint, sharing one layout) and the uniforms' bind
-/// group.
+/// The present pipelines (one per target format and [`Resample`], sharing one layout) and the
+/// uniforms' bind group.
 pub struct PresentPass {
     layouts: [wgpu::BindGroupLayout; 2],
     layout: wgpu::PipelineLayout,
     device_bind: wgpu::BindGroup,
     exposure_bind: wgpu::BindGroup,
-    pipelines: Vec<((wgpu::TextureFormat, bool), wgpu::RenderPipeline)>,
+    pipelines: Vec<((wgpu::TextureFormat, Resample), wgpu::RenderPipeline)>,
 }
 
 impl PresentPass {
@@ -106,16 +129,18 @@ impl PresentPass {
         }
     }
 
-    /// The pipeline for a target format and upsample footprint (`MarchParams::wide_upsample`),
-    /// made on first use. The footprint is a pipeline constant, not a uniform branch: lavapipe
-    /// then compiles only the loop it runs (a run-time branch cost about 10 ms a frame).
+    /// The pipeline for a target format and a way of reading the march, made on first use.
+    /// Both are pipeline constants, not uniform branches: a CPU driver runs every side of a
+    /// branch for every pixel, taken or not, so a window that enlarges its march paid for the
+    /// full-size resolve as well (about 6 ms of a 1280×720 frame on lavapipe), and the
+    /// footprint's two loops for both (about 10 ms).
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         format: wgpu::TextureFormat,
-        wide_upsample: bool,
+        resample: Resample,
     ) -> PipelineId {
-        let key = (format, wide_upsample);
+        let key = (format, resample);
         if let Some(i) = self.pipelines.iter().position(|(k, _)| *k == key) {
             return PipelineId(i);
         }
@@ -123,7 +148,14 @@ impl PresentPass {
         let module = shader::module(dev, "present", shader::PRESENT);
         let encode = [
             ("ENCODE_SRGB", if format.is_srgb() { 0.0 } else { 1.0 }),
-            ("WIDE_UPSAMPLE", if wide_upsample { 1.0 } else { 0.0 }),
+            (
+                "UPSAMPLE",
+                if resample == Resample::Same { 0.0 } else { 1.0 },
+            ),
+            (
+                "WIDE_UPSAMPLE",
+                if resample == Resample::Wide { 1.0 } else { 0.0 },
+            ),
         ];
         let pipeline = super::pipeline::fullscreen(
             dev,
@@ -187,5 +219,22 @@ impl PresentPass {
         pass.set_bind_group(2, &self.exposure_bind, &[]);
         pass.set_bind_group(SCENE_GROUP, scene_bind, &[]);
         pass.draw(0..3, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Resample;
+
+    #[test]
+    fn a_march_at_the_targets_size_is_resolved_and_a_smaller_one_enlarged() {
+        // The window's CPU default (¼ of 1280) and a march a pixel short of the target's size
+        // enlarge; the target's own size, or a rounding over it, resolves in place.
+        assert_eq!(Resample::of(320.0 / 1280.0, false), Resample::Nearest);
+        assert_eq!(Resample::of(320.0 / 1280.0, true), Resample::Wide);
+        assert_eq!(Resample::of(1266.0 / 1280.0, true), Resample::Wide);
+        assert_eq!(Resample::of(1.0, true), Resample::Same);
+        assert_eq!(Resample::of(1.0, false), Resample::Same);
+        assert_eq!(Resample::of(1279.0 / 1280.0, false), Resample::Same);
     }
 }
