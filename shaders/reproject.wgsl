@@ -35,6 +35,12 @@ struct Reproject {
     _pad2: u32,
 };
 
+// Set by the pipeline (render::reproject::ReprojectPass): a still camera with a valid history
+// (`rp.still` > 0, `rp.valid`), whose pixels fill from the still view's lattice; else the
+// moving view's path. A constant, not the uniform's test: a CPU driver runs both paths for
+// every pixel when the choice is a uniform's.
+override STILL: bool = false;
+
 // Moved by less than this (px) since the last frame, a pixel keeps its history unclamped.
 const STILL_PX: f32 = 0.25;
 
@@ -90,7 +96,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         textureStore(out_scene, p, textureLoad(fresh_scene, cell, 0));
         return;
     }
-    if (rp.valid != 0u && rp.still != 0u) {
+    if (STILL) {
         still_pixel(id.xy, size, n);
         return;
     }

@@ -121,11 +121,27 @@ pub fn frame(
     let mut out = r.render(&view, w, h, &settings)?;
     if a.repeat > 1 {
         let mut runs = Vec::new();
-        for _ in 0..a.repeat {
-            runs.push(r.render(&view, w, h, &settings)?);
+        for i in 1..=a.repeat {
+            let mut s = settings.clone();
+            if a.reprojection {
+                // The window's frames count on (each its own jitter), as in `scaled`.
+                s.frame_index = settings.frame_index.wrapping_add(i);
+            }
+            runs.push(r.render(&view, w, h, &s)?);
         }
-        runs.sort_by(|x, y| x.timings.wall_ms.total_cmp(&y.timings.wall_ms));
-        out = runs.swap_remove(runs.len() / 2);
+        let mut ms: Vec<_> = runs.iter().map(|x| x.timings).collect();
+        ms.sort_by(|x, y| x.wall_ms.total_cmp(&y.wall_ms));
+        let median = ms[ms.len() / 2];
+        // With --reprojection on the picture is the last frame, the one the history has
+        // built up (the median frame's was whichever the clock picked); the timings are the
+        // median frame's either way.
+        out = if a.reprojection {
+            runs.pop().ok_or_else(|| anyhow::anyhow!("no frame"))?
+        } else {
+            runs.sort_by(|x, y| x.timings.wall_ms.total_cmp(&y.timings.wall_ms));
+            runs.swap_remove(runs.len() / 2)
+        };
+        out.timings = median;
     }
     let img = out.to_image();
     done(&img)?;

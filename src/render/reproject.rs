@@ -261,9 +261,13 @@ pub fn params(
     }
 }
 
-/// The stage's pipeline and its device-lifetime bindings.
+/// The stage's pipelines and its device-lifetime bindings.
 pub struct ReprojectPass {
-    pipeline: wgpu::ComputePipeline,
+    /// For a moving view, and for a still one ([`ReprojectParams::still`] with a valid
+    /// history): reproject.wgsl's `STILL` as a pipeline constant, since a CPU driver runs both
+    /// paths for every pixel when the choice is a uniform's (the moving one's cost a still
+    /// view, and the still one's about 3 ms of the window's 45 ms frame on lavapipe).
+    pipelines: [wgpu::ComputePipeline; 2],
     target_layout: wgpu::BindGroupLayout,
     device_bind: wgpu::BindGroup,
     params: wgpu::Buffer,
@@ -280,13 +284,15 @@ impl ReprojectPass {
             immediate_size: 0,
         });
         let module = shader::module(dev, "reproject", shader::REPROJECT);
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("reproject"),
-            layout: Some(&layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
+        let pipelines = [0.0, 1.0].map(|still| {
+            super::pipeline::entry_pipeline(
+                dev,
+                "reproject",
+                &layout,
+                &module,
+                "main",
+                &[("STILL", still)],
+            )
         });
         let params = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("reproject params"),
@@ -313,7 +319,7 @@ impl ReprojectPass {
         );
         let [_, target_layout] = layouts;
         ReprojectPass {
-            pipeline,
+            pipelines,
             target_layout,
             device_bind,
             params,
@@ -359,7 +365,8 @@ impl ReprojectPass {
             label: Some("reproject"),
             timestamp_writes: timestamps,
         });
-        pass.set_pipeline(&self.pipeline);
+        let still = params.valid != 0 && params.still != 0;
+        pass.set_pipeline(&self.pipelines[usize::from(still)]);
         pass.set_bind_group(0, &self.device_bind, &[]);
         pass.set_bind_group(1, target_bind, &[]);
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
