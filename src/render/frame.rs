@@ -271,6 +271,10 @@ pub struct FrameInput<'a> {
     pub settings: &'a Settings,
 }
 
+/// A march under this many pixels a target pixel (`march_scale`) is enlarged into its target
+/// (render::present::Resample), not resolved at its size.
+pub const ENLARGED_BELOW: f32 = 0.99;
+
 /// The [`flags`] a march with these parameters runs with.
 fn march_flags(p: &MarchParams) -> u32 {
     let sc = p.shortcuts;
@@ -483,6 +487,13 @@ fn march(u: &mut FrameUniforms, inp: &FrameInput<'_>, p: &MarchParams) {
     u.out_size = [inp.width as f32, inp.height as f32];
     u.frame_index = s.frame_index as f32;
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;
+    // A march enlarged into its target (the window's render scale) takes the grazing rays
+    // whatever the preset: its pixel is 1 / scale target pixels tall, and a far deck's rim or
+    // the haze line over it, thinner than that, was hit or missed along the horizon's row in
+    // runs, bars 4 px high and tens of pixels long in the ¼ window (docs/footprint.md).
+    if u.march_scale < ENLARGED_BELOW {
+        u.flags |= flags::GRAZE;
+    }
     // Every pixel marched; a reprojected frame takes one per cell (render::reproject).
     u.subset_n = 1.0;
 }

@@ -50,7 +50,7 @@ impl Resample {
     /// For a march of `march_scale` pixels a target pixel (frame.wgsl `march_scale`), with the
     /// preset's choice of upsample footprint.
     pub fn of(march_scale: f32, wide_upsample: bool) -> Resample {
-        match (march_scale < 0.99, wide_upsample) {
+        match (march_scale < super::frame::ENLARGED_BELOW, wide_upsample) {
             (false, _) => Resample::Same,
             (true, false) => Resample::Nearest,
             (true, true) => Resample::Wide,

@@ -206,8 +206,9 @@ pub struct MarchParams {
     /// takes four more rays down its height where its one ray's picture differs from a
     /// neighbour's on screen. On for `balanced`, `high` and `reference`; off for `fast`:
     /// `balanced` views with the horizon in frame march 3–21 % more steps with it. Frames that
-    /// march a subset of the pixels (reprojection) go without (docs/footprint.md, "Grazing rays
-    /// where the picture asks").
+    /// march a subset of the pixels (reprojection) at the target's size go without
+    /// (docs/footprint.md, "Grazing rays where the picture asks"); a march enlarged into its
+    /// target (the window's render scale) takes them at every preset (render::frame::build).
     #[serde(default)]
     pub graze: bool,
     pub shortcuts: Shortcuts,

@@ -290,10 +290,14 @@ impl Renderer {
                 let [ox, oy] = reproject::subset_offset(h.n, rank);
                 uniforms.subset_n = h.n as f32;
                 uniforms.subset_offset = [ox as f32, oy as f32];
-                // No grazing rays in a subset march: its workgroup's neighbours are n pixels
-                // apart and differ more often, so nearly every grazing pixel took them (the
-                // East Asia cruise at `balanced`: a third more steps and wall time a frame).
-                uniforms.flags &= !super::frame::flags::GRAZE;
+                // No grazing rays in a subset march at the target's size: its workgroup's
+                // neighbours are n pixels apart and differ more often, so nearly every grazing
+                // pixel took them (the East Asia cruise at `balanced`: a third more steps and
+                // wall time a frame). An enlarged one keeps them (frame::build): there a march
+                // pixel is several target pixels tall, and a frame marches few rays.
+                if uniforms.march_scale >= super::frame::ENLARGED_BELOW {
+                    uniforms.flags &= !super::frame::flags::GRAZE;
+                }
                 MarchStep {
                     set: 1 - h.shown,
                     reproject: Some(p.params),
