@@ -73,7 +73,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         // around (bilinear weights), or with WIDE_UPSAMPLE over a 4×4 footprint that also
         // resolves the march's jitter: bilinear between 3×3 means, weights (1−f)/3, 1/3, 1/3,
         // f/3 per axis. On a CPU driver, the one that upsamples, this pass runs over every
-        // window pixel: the 4×4 footprint costs about 30 ms a frame more at 1280×720 (fly.md).
+        // window pixel: the 4×4 footprint costs about 17 ms a frame more than the four at
+        // 1280×720 on lavapipe (docs/performance.md, "The window's frame").
         let q = px - 0.5;
         let fr = q - floor(q);
         let i0 = vec2<i32>(floor(q));
@@ -84,11 +85,21 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             let wy = vec4<f32>(1.0 - fr.y, 1.0, 1.0, fr.y) / 3.0;
             for (var j = 0; j < 4; j++) {
                 for (var i = 0; i < 4; i++) {
-                    // The background has no jitter to resolve: its own bilinear taps (the
-                    // middle four).
-                    let inner = (i == 1 || i == 2) && (j == 1 || j == 2);
-                    let wb = select(0.0, select(1.0 - fr.x, fr.x, i == 2) * select(1.0 - fr.y, fr.y, j == 2), inner);
-                    upsample_tap(&acc, i0 + vec2<i32>(i - 1, j - 1), dims, wx[i] * wy[j], wb, near);
+                    let at = clamp(i0 + vec2<i32>(i - 1, j - 1), vec2<i32>(0), dims - 1);
+                    let t = textureLoad(cloud, at, 0);
+                    let wc = (wx[i] * wy[j] + 1e-4) * edge_weight(t.a - near.x, textureLoad(scene, at, 0).a, near.y);
+                    acc.c += wc * t;
+                    acc.wsum += wc;
+                }
+            }
+            // The background has no jitter to resolve: its own bilinear taps, the middle four.
+            for (var j = 0; j < 2; j++) {
+                for (var i = 0; i < 2; i++) {
+                    let at = clamp(i0 + vec2<i32>(i, j), vec2<i32>(0), dims - 1);
+                    let sc = textureLoad(scene, at, 0);
+                    let wbg = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1) * edge_weight(0.0, sc.a, near.y);
+                    acc.b += wbg * sc.rgb;
+                    acc.bw += wbg;
                 }
             }
         } else {

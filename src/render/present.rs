@@ -132,8 +132,7 @@ impl PresentPass {
     /// The pipeline for a target format and a way of reading the march, made on first use.
     /// Both are pipeline constants, not uniform branches: a CPU driver runs every side of a
     /// branch for every pixel, taken or not, so a window that enlarges its march paid for the
-    /// full-size resolve as well (about 6 ms of a 1280×720 frame on lavapipe), and the
-    /// footprint's two loops for both (about 10 ms).
+    /// full-size resolve as well (about 20 ms of a 1280×720 frame on lavapipe).
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
