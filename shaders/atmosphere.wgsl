@@ -113,6 +113,7 @@ fn ms_uv(h: f32, mu_s: f32) -> vec2<f32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn transmittance(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(lut_out);
     if (any(id.xy >= dims)) {
         return;
@@ -132,6 +133,7 @@ fn transmittance(@builtin(global_invocation_id) id: vec3<u32>) {
 // orders as a geometric series 1/(1 − f_ms), isotropic; 8×8 directions, 20 steps each.
 @compute @workgroup_size(8, 8, 1)
 fn multiscatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(lut_out);
     if (any(id.xy >= dims)) {
         return;
@@ -258,6 +260,7 @@ fn air_segment(r: SkyRay, t0: f32, t1: f32) -> Segment {
 
 @compute @workgroup_size(8, 8, 1)
 fn sky_view(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(lut_out);
     if (any(id.xy >= dims)) {
         return;
@@ -284,6 +287,7 @@ fn sky_view(@builtin(global_invocation_id) id: vec3<u32>) {
 // transmittance over that distance (a); two steps per slice, none past the ground or the top.
 @compute @workgroup_size(8, 8, 1)
 fn aerial(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(ap_out);
     if (any(id.xy >= dims.xy)) {
         return;

@@ -22,6 +22,7 @@ var<workgroup> sums: array<f32, 256>;
 
 @compute @workgroup_size(256, 1, 1)
 fn main(@builtin(local_invocation_index) li: u32) {
+    load_frame();
     let dims = vec2<i32>(textureDimensions(cloud));
     var s = 0.0;
     for (var k = 0u; k < PER_LANE; k++) {

@@ -800,6 +800,7 @@ fn main(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    load_frame();
     if (li < N_COUNTERS) {
         atomicStore(&wg_count[li], 0u);
     }
@@ -852,6 +853,7 @@ fn rework(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    load_frame();
     let slot = id.x / GRAZE_EXTRA;
     let k = id.x % GRAZE_EXTRA;
     let live = slot < min(atomicLoad(&rework_list.count), arrayLength(&rework_list.entries));

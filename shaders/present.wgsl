@@ -59,6 +59,7 @@ fn upsample_tap(acc: ptr<function, Upsample>, p: vec2<i32>, dims: vec2<i32>, w: 
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    load_frame();
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));

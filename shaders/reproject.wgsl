@@ -80,6 +80,7 @@ fn fill_add(fill: ptr<function, Fill>, c: vec4<f32>, s: vec4<f32>, wb: f32, near
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     let size = vec2<u32>(f.out_size);
     if (any(id.xy >= size)) {
         return;

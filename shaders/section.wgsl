@@ -16,6 +16,7 @@ struct SectionParams {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    load_frame();
     if (id.x >= sp.width || id.y >= sp.height) {
         return;
     }

@@ -51,6 +51,7 @@ fn path_od(p0: vec3<f32>, h0: f32, d: vec3<f32>) -> f32 {
 // its levels (a running sum from the top, two samples between level centres).
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(od_out);
     // This dispatch's slice of rows (a volume may be made over several frames).
     let id = vec2<u32>(gid.x, gid.y + sh.row0);
