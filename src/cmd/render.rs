@@ -129,19 +129,20 @@ pub fn frame(
             }
             runs.push(r.render(&view, w, h, &s)?);
         }
-        let mut ms: Vec<_> = runs.iter().map(|x| x.timings).collect();
-        ms.sort_by(|x, y| x.wall_ms.total_cmp(&y.wall_ms));
-        let median = ms[ms.len() / 2];
+        let mut order: Vec<usize> = (0..runs.len()).collect();
+        order.sort_by(|&x, &y| runs[x].timings.wall_ms.total_cmp(&runs[y].timings.wall_ms));
+        let median = order[order.len() / 2];
+        let timings = runs[median].timings;
         // With --reprojection on the picture is the last frame, the one the history has
         // built up (the median frame's was whichever the clock picked); the timings are the
         // median frame's either way.
-        out = if a.reprojection {
-            runs.pop().ok_or_else(|| anyhow::anyhow!("no frame"))?
+        let shown = if a.reprojection {
+            runs.len() - 1
         } else {
-            runs.sort_by(|x, y| x.timings.wall_ms.total_cmp(&y.timings.wall_ms));
-            runs.swap_remove(runs.len() / 2)
+            median
         };
-        out.timings = median;
+        out = runs.swap_remove(shown);
+        out.timings = timings;
     }
     let img = out.to_image();
     done(&img)?;
