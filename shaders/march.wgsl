@@ -567,7 +567,8 @@ struct Shaded {
 };
 
 // The exposure the rays will be shown at: a fixed one, else the last frame's adapted one
-// (before any frame, the Sun's-height exposure adaptation starts from).
+// (before any frame, and for every single picture, which clears it: the Sun's-height exposure
+// adaptation starts from).
 fn shown_at() -> f32 {
     let adapted = !has_flag(FLAG_FIXED_EXPOSURE) && shown_exposure.value > 0.0;
     return max(select(f.exposure, shown_exposure.value, adapted), 1e-12);
