@@ -228,15 +228,21 @@ pub fn srgb_to_linear(c: u8) -> f64 {
 
 /// The picture in linear RGB, box-downsampled by `k` each way (`k` = 1: as it is).
 pub fn linear_box(out: &Output, k: u32) -> Vec<[f64; 3]> {
-    let (w, h) = (out.width / k, out.height / k);
+    linear_box_rgba(&out.pixels, out.width, k)
+}
+
+/// The same for sRGB RGBA bytes `width` pixels a row.
+pub fn linear_box_rgba(pixels: &[u8], width: u32, k: u32) -> Vec<[f64; 3]> {
+    let height = (pixels.len() / (4 * width.max(1) as usize)) as u32;
+    let (w, h) = (width / k, height / k);
     let mut v = vec![[0.0; 3]; (w * h) as usize];
     let n = (k * k) as f64;
     for y in 0..h * k {
         for x in 0..w * k {
-            let i = ((y * out.width + x) * 4) as usize;
+            let i = ((y * width + x) * 4) as usize;
             let o = &mut v[((y / k) * w + x / k) as usize];
             for (c, v) in o.iter_mut().enumerate() {
-                *v += srgb_to_linear(out.pixels[i + c]) / n;
+                *v += srgb_to_linear(pixels[i + c]) / n;
             }
         }
     }

@@ -1,10 +1,12 @@
-//! Temporal super-resolution in the window (issue 30): at a render scale under 1 a reprojected
-//! window marches a subset of its *own* pixels each frame (`stratus::scaled::plan`), so a still
-//! view converges to the full-resolution picture and a moving one keeps no black or stale
-//! pixels. Headless, through the window's own path (`scaled::plan`, `scaled::render`: the
-//! present pass into a target of the output's size), at 320×180 `fast` with a fixed exposure,
-//! on lavapipe in CI. Each picture is compared in linear RGB with a full march of the same view
-//! at the same frame (the same jitter).
+//! The window at a render scale under 1 (issue 30), its two paths: the default, which marches
+//! the smaller picture in the preset's cells, reprojects it there, resolves its jitter and
+//! enlarges it (render::resolve), and temporal super-resolution (`--super-resolution on`,
+//! `stratus::scaled::plan`), which marches a subset of the window's *own* pixels each frame, so
+//! a still view converges to the full-resolution picture. Both keep no black or stale pixels in
+//! flight. Headless, through the window's own paths (`scaled::render`: the present pass into a
+//! target of the output's size), at 320×180 `fast` with a fixed exposure, on lavapipe in CI.
+//! Each picture is compared in linear RGB with a full march of the same view at the same frame
+//! (the same jitter).
 //!
 //! `STRATUS_TSR_MAP=MAP.json` (with `STRATUS_TSR_VIEW=LAT,LON,ALT,HEADING,PITCH` and
 //! `STRATUS_TSR_TIME`) runs the ignored `figures` on a real map and prints the table of
@@ -72,11 +74,11 @@ fn black(a: &Linear, full: &Linear) -> usize {
 enum Path {
     /// Every pixel marched at the output's size.
     Full,
-    /// The window now: `scaled::plan` at this render scale (reprojected at the output's size).
-    Window(f32),
-    /// The window before issue 30's super-resolution: marched at the render scale in the
-    /// preset's cells, reprojected there, enlarged by the present pass.
-    Before(f32),
+    /// Super-resolution: `scaled::plan` at this render scale (reprojected at the output's size).
+    SuperResolution(f32),
+    /// The window's default: marched at the render scale in the preset's cells, reprojected
+    /// there, resolved and enlarged.
+    Enlarged(f32),
 }
 
 struct Frames {
@@ -105,8 +107,8 @@ impl Frames {
                 s.reprojection = Reprojection::Off;
                 (SIZE, s)
             }
-            Path::Window(scale) => scaled::plan(SIZE, scale, &view, &s),
-            Path::Before(scale) => (scaled::march_size(SIZE, scale), s),
+            Path::SuperResolution(scale) => scaled::plan(SIZE, scale, &view, &s),
+            Path::Enlarged(scale) => (scaled::march_size(SIZE, scale), s),
         };
         let (img, _) = scaled::render(&mut self.r, &view, march, SIZE, &s).expect("a frame");
         (linear(&img), img)
@@ -184,16 +186,17 @@ fn still_errors(
     out
 }
 
-/// A still window at the CPU default's preset converges to the full march: in 16 frames with
-/// a 4×4 cell (one pixel in 16 a frame, render scale 1), and at the CPU default's render scale
-/// ¼ (one pixel of each 16×16 cell a frame, as many rays as the ¼ march before) in 256,
-/// passing the old window's picture on the way.
+/// A still window at the CPU default's preset converges to the full march. Super-resolution:
+/// in 16 frames with a 4×4 cell (one pixel in 16 a frame, render scale 1), and at the CPU
+/// default's render scale ¼ (one pixel of each 16×16 cell a frame, as many rays as the ¼ march)
+/// in 256, passing the enlarged ¼ window on the way. The enlarged ¼ window (the CPU default)
+/// after 16 frames: 0.0137 (lavapipe), 0.0257 before its jitter was resolved before enlarging.
 #[test]
 fn a_still_window_converges_to_the_full_march() {
     let (map, base) = (deck(), fast_settings());
     let at = (&map, &base);
     let cam = deck_view();
-    let four = still_errors(at, cam, Path::Window(1.0), &[1, 16], None);
+    let four = still_errors(at, cam, Path::SuperResolution(1.0), &[1, 16], None);
     eprintln!(
         "4×4 cells: RMSE after 1 frame {:.4}, 16 frames {:.4}",
         four[0], four[1]
@@ -203,24 +206,33 @@ fn a_still_window_converges_to_the_full_march() {
         "16 frames of 4×4 cells: RMSE {:.4}",
         four[1]
     );
-    let quarter = still_errors(at, cam, Path::Window(0.25), &[1, 16, 64, 256], None);
-    let before = still_errors(at, cam, Path::Before(0.25), &[16], None);
+    let quarter = still_errors(
+        at,
+        cam,
+        Path::SuperResolution(0.25),
+        &[1, 16, 64, 256],
+        None,
+    );
+    let enlarged = still_errors(at, cam, Path::Enlarged(0.25), &[16], None)[0];
     eprintln!(
-        "render scale ¼ (16×16 cells): RMSE after 1 / 16 / 64 / 256 frames {:.4} / {:.4} / {:.4} / {:.4}; the ¼ march before, 16 frames: {:.4}",
-        quarter[0], quarter[1], quarter[2], quarter[3], before[0]
+        "render scale ¼ (16×16 cells): RMSE after 1 / 16 / 64 / 256 frames {:.4} / {:.4} / {:.4} / {:.4}; the enlarged ¼ march, 16 frames: {enlarged:.4}",
+        quarter[0], quarter[1], quarter[2], quarter[3]
     );
     assert!(
         quarter[3] <= 0.01,
         "256 frames at ¼: RMSE {:.4}",
         quarter[3]
     );
-    assert!(
-        quarter[1] <= before[0] + 0.002,
-        "16 frames at ¼: RMSE {:.4}, the old ¼ march {:.4}",
-        quarter[1],
-        before[0]
-    );
     assert!(quarter[2] < quarter[1] && quarter[3] < quarter[2]);
+    assert!(
+        quarter[3] < enlarged,
+        "256 frames of super-resolution ({:.4}) do not pass the enlarged ¼ march ({enlarged:.4})",
+        quarter[3]
+    );
+    assert!(
+        enlarged <= 0.016,
+        "16 frames of the enlarged ¼ march: RMSE {enlarged:.4}"
+    );
 }
 
 /// What a flight at the pilot's default speed shows, frame by frame: RMSE against the full
@@ -265,34 +277,40 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
-/// Flying at the pilot's default speed with a gentle turn, the window at the CPU default (¼)
-/// shows no black pixel the full march does not have, and stays no further from the full march
-/// than the old ¼ window.
+/// Flying at the pilot's default speed with a gentle turn, the window at the CPU default (the
+/// enlarged ¼ march) and with super-resolution show no black pixel the full march does not
+/// have. The enlarged window's mean RMSE against the full march: 0.0227 (lavapipe), 0.0312
+/// before its jitter was resolved before enlarging; super-resolution's 0.0355 (its sharp,
+/// recently marched pixels move, docs/footprint.md).
 #[test]
 fn flying_at_the_pilots_speed_keeps_no_black_or_stale_pixels() {
     let (map, base) = (deck(), fast_settings());
     let at = (&map, &base);
     let motion = (24, 0.2);
-    let now = fly(at, deck_view(), Path::Window(0.25), motion, None);
-    let before = fly(at, deck_view(), Path::Before(0.25), motion, None);
+    let sr = fly(at, deck_view(), Path::SuperResolution(0.25), motion, None);
+    let enlarged = fly(at, deck_view(), Path::Enlarged(0.25), motion, None);
     eprintln!(
-        "flying: RMSE mean {:.4} last {:.4}, black pixels {} (the ¼ march before: RMSE mean {:.4} last {:.4}, black {})",
-        mean(&now.rmse),
-        now.rmse.last().unwrap_or(&0.0),
-        now.black.iter().sum::<usize>(),
-        mean(&before.rmse),
-        before.rmse.last().unwrap_or(&0.0),
-        before.black.iter().sum::<usize>()
+        "flying: super-resolution RMSE mean {:.4} last {:.4}, black pixels {}; the enlarged ¼ march RMSE mean {:.4} last {:.4}, black {}",
+        mean(&sr.rmse),
+        sr.rmse.last().unwrap_or(&0.0),
+        sr.black.iter().sum::<usize>(),
+        mean(&enlarged.rmse),
+        enlarged.rmse.last().unwrap_or(&0.0),
+        enlarged.black.iter().sum::<usize>()
     );
-    assert_eq!(
-        now.black.iter().sum::<usize>(),
-        0,
-        "black pixels: {:?}",
-        now.black
+    for f in [&sr, &enlarged] {
+        assert_eq!(
+            f.black.iter().sum::<usize>(),
+            0,
+            "black pixels: {:?}",
+            f.black
+        );
+    }
+    assert!(
+        mean(&enlarged.rmse) <= 0.026,
+        "the enlarged ¼ march in flight"
     );
-    // Against a full march at the same jitter a moving view of sharp, recently marched pixels
-    // scores a little worse than the smoother ¼ march before (docs/footprint.md): bounded here.
-    assert!(mean(&now.rmse) <= mean(&before.rmse) * 1.25);
+    assert!(mean(&sr.rmse) <= 0.04, "super-resolution in flight");
 }
 
 /// The figures of docs/footprint.md on a real map (ignored: needs `STRATUS_TSR_MAP`).
@@ -334,22 +352,22 @@ fn figures() {
     let now = still_errors(
         at,
         pose,
-        Path::Window(0.25),
+        Path::SuperResolution(0.25),
         &still_at,
         Some(("after", &mut pics)),
     );
     let before = still_errors(
         at,
         pose,
-        Path::Before(0.25),
+        Path::Enlarged(0.25),
         &still_at,
         Some(("before", &mut pics)),
     );
     println!("| still frames | 1 | 16 | 64 | 256 |");
     println!("|---|---:|---:|---:|---:|");
     for (name, e) in [
-        ("window ¼ now (16×16 cells)", &now),
-        ("window ¼ before (¼ march, 4×4 cells)", &before),
+        ("super-resolution ¼ (16×16 cells)", &now),
+        ("enlarged ¼ march (4×4 cells)", &before),
     ] {
         println!(
             "| {name} | {:.4} | {:.4} | {:.4} | {:.4} |",
@@ -360,18 +378,18 @@ fn figures() {
     let a = fly(
         at,
         pose,
-        Path::Window(0.25),
+        Path::SuperResolution(0.25),
         motion,
         Some(("after", &mut pics)),
     );
     let b = fly(
         at,
         pose,
-        Path::Before(0.25),
+        Path::Enlarged(0.25),
         motion,
         Some(("before", &mut pics)),
     );
-    for (name, f) in [("now", &a), ("before", &b)] {
+    for (name, f) in [("super-resolution", &a), ("enlarged", &b)] {
         println!(
             "flying {name}: RMSE mean {:.4} last {:.4}; black pixels {}",
             mean(&f.rmse),

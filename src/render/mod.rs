@@ -6,7 +6,8 @@
 //! Stages, one module and one WGSL file each: `noise` (3D noise textures, once), `shadow` (the
 //! full-column light volume, when the Sun or the map changes), `atmosphere` (the sky's tables),
 //! `march` (compute ray march into a cloud texture), `exposure` (meters the frame), `present`
-//! (sky + composite + tone map), `reproject` (a full frame from a subset march and the last
+//! (sky + composite + tone map), `resolve` (a smaller march's jitter resolved before the present
+//! stage enlarges it), `reproject` (a full frame from a subset march and the last
 //! frame: the window, `flight`), `section` (the march's cloud on a vertical curtain). What the
 //! stages read: `weather` uploads the map (`blend` a second forecast step), `structure` its
 //! per-column base, top, type and wind, `ground` the terrain and surface, `cells` the cumulus
@@ -39,6 +40,7 @@ pub mod profile;
 pub mod reach;
 pub mod readback;
 pub mod reproject;
+pub mod resolve;
 pub mod scene;
 pub mod section;
 pub mod settings;
@@ -151,6 +153,8 @@ pub struct Renderer {
     atmosphere: atmosphere::AtmospherePass,
     exposure: exposure::ExposurePass,
     reproject: reproject::ReprojectPass,
+    /// Made on the first march enlarged into its target (the window's render scale).
+    resolve: Option<resolve::ResolvePass>,
     /// Counts the maps set, so the shadow volume knows when its map changed.
     map_generation: u64,
     map_bind: wgpu::BindGroup,
@@ -205,6 +209,7 @@ impl Renderer {
             atmosphere,
             exposure,
             reproject,
+            resolve: None,
             map_generation: 0,
             map_bind,
             targets: None,
@@ -350,7 +355,7 @@ impl Renderer {
         settings.validate()?;
         self.blend_at(settings);
         let mut uniforms = self.uniforms(view, (width, height, target_width), settings)?;
-        let resample = present::Resample::of(uniforms.march_scale, settings.march.wide_upsample);
+        let resample = present::Resample::of(uniforms.march_scale);
         let pipeline = self.present.prepare(&self.gpu, target_format, resample);
         let plan = self.plan_reprojection(view, (width, height), settings);
         let step = self.march_step(plan.as_ref(), &mut uniforms, (width, height));
@@ -364,8 +369,34 @@ impl Renderer {
             enc.clear_buffer(&self.exposure.state, 0, None);
         }
         self.encode_march(enc, variant, &step, plan.is_some(), (width, height));
-        self.encode_present(enc, settings, pipeline, target);
+        let enlarged = resample == present::Resample::Enlarged;
+        if enlarged {
+            self.encode_resolve(enc);
+        }
+        self.encode_present(enc, settings, pipeline, target, enlarged);
         Ok(())
+    }
+
+    /// The shown frame's march resolved at its own size (render::resolve), for the present
+    /// stage to enlarge; its texture made on the first such frame at this size.
+    fn encode_resolve(&mut self, enc: &mut wgpu::CommandEncoder) {
+        let Renderer {
+            gpu,
+            march,
+            present,
+            resolve,
+            targets: Some(t),
+            ..
+        } = self
+        else {
+            unreachable!("targets were made by plan_reprojection");
+        };
+        let resolve =
+            resolve.get_or_insert_with(|| resolve::ResolvePass::new(gpu, &march.uniforms));
+        let size = (t.width, t.height);
+        let set = t.shown_mut();
+        let e = set.enlarged(gpu, resolve, present, size);
+        resolve.encode(enc, &e.resolve_bind, size);
     }
 
     /// A frame's light: its uniforms and zeroed counters written, the sky's tables and the
@@ -502,11 +533,17 @@ impl Renderer {
         settings: &Settings,
         pipeline: present::PipelineId,
         target: &wgpu::TextureView,
+        enlarged: bool,
     ) {
         let Some(t) = self.targets.as_ref() else {
             unreachable!("targets were made by plan_reprojection");
         };
         let shown = t.shown();
+        // An enlarged march is read resolved (`encode_resolve`).
+        let present_bind = match (&shown.enlarged, enlarged) {
+            (Some(e), true) => &e.present_bind,
+            _ => &shown.present_bind,
+        };
         let params = exposure::ExposureParams {
             ev_mul: 2f64.powf(settings.exposure_ev) as f32,
             rate: settings.exposure_rate,
@@ -520,7 +557,7 @@ impl Renderer {
         self.present.encode(
             enc,
             pipeline,
-            &shown.present_bind,
+            present_bind,
             scene_bind,
             target,
             timer.map(|q| q.render_writes()),

@@ -1,6 +1,7 @@
 //! Present stage: a full-screen triangle (shaders/present.wgsl) that composites the cloud
 //! texture over the background the march found (sky, Sun, Moon, stars, ground), upsampling
-//! edge-aware where the march was smaller, and tone-maps into the target format.
+//! edge-aware where the march was smaller (from its picture resolved by render::resolve), and
+//! tone-maps into the target format.
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
@@ -37,23 +38,20 @@ pub fn bindings() -> Vec<Binding> {
 
 /// How the present stage reads the march: at the target's own size (the march's jitter
 /// resolved over 3×3 march pixels), or enlarged from a smaller march (the window's render
-/// scale) over the four nearest march pixels or, `MarchParams::wide_upsample`, a 4×4 footprint
-/// that also resolves the jitter.
+/// scale) over the four nearest pixels of that march resolved at its own size (render::resolve).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Resample {
     Same,
-    Nearest,
-    Wide,
+    Enlarged,
 }
 
 impl Resample {
-    /// For a march of `march_scale` pixels a target pixel (frame.wgsl `march_scale`), with the
-    /// preset's choice of upsample footprint.
-    pub fn of(march_scale: f32, wide_upsample: bool) -> Resample {
-        match (march_scale < super::frame::ENLARGED_BELOW, wide_upsample) {
-            (false, _) => Resample::Same,
-            (true, false) => Resample::Nearest,
-            (true, true) => Resample::Wide,
+    /// For a march of `march_scale` pixels a target pixel (frame.wgsl `march_scale`).
+    pub fn of(march_scale: f32) -> Resample {
+        if march_scale < super::frame::ENLARGED_BELOW {
+            Resample::Enlarged
+        } else {
+            Resample::Same
         }
     }
 }
@@ -151,10 +149,6 @@ impl PresentPass {
                 "UPSAMPLE",
                 if resample == Resample::Same { 0.0 } else { 1.0 },
             ),
-            (
-                "WIDE_UPSAMPLE",
-                if resample == Resample::Wide { 1.0 } else { 0.0 },
-            ),
         ];
         let pipeline = super::pipeline::fullscreen(
             dev,
@@ -229,11 +223,9 @@ mod tests {
     fn a_march_at_the_targets_size_is_resolved_and_a_smaller_one_enlarged() {
         // The window's CPU default (¼ of 1280) and a march a pixel short of the target's size
         // enlarge; the target's own size, or a rounding over it, resolves in place.
-        assert_eq!(Resample::of(320.0 / 1280.0, false), Resample::Nearest);
-        assert_eq!(Resample::of(320.0 / 1280.0, true), Resample::Wide);
-        assert_eq!(Resample::of(1266.0 / 1280.0, true), Resample::Wide);
-        assert_eq!(Resample::of(1.0, true), Resample::Same);
-        assert_eq!(Resample::of(1.0, false), Resample::Same);
-        assert_eq!(Resample::of(1279.0 / 1280.0, false), Resample::Same);
+        assert_eq!(Resample::of(320.0 / 1280.0), Resample::Enlarged);
+        assert_eq!(Resample::of(1266.0 / 1280.0), Resample::Enlarged);
+        assert_eq!(Resample::of(1.0), Resample::Same);
+        assert_eq!(Resample::of(1279.0 / 1280.0), Resample::Same);
     }
 }

@@ -61,7 +61,6 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 4,
-                wide_upsample: false,
                 graze: false,
                 shortcuts: on,
             },
@@ -78,7 +77,6 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 4,
-                wide_upsample: true,
                 graze: true,
                 shortcuts: on,
             },
@@ -95,7 +93,6 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 2,
-                wide_upsample: true,
                 graze: true,
                 shortcuts: on,
             },
@@ -112,7 +109,6 @@ impl Preset {
                 terrain: true,
                 aerial: true,
                 subset: 1,
-                wide_upsample: true,
                 graze: true,
                 shortcuts: Shortcuts {
                     early_exit: false,
@@ -196,11 +192,6 @@ pub struct MarchParams {
     /// marches one pixel of each `subset`×`subset` cell and reprojects the rest
     /// (render::reproject); 1 marches every pixel. A power of two, at most 8.
     pub subset: u32,
-    /// Where the window marches at a fraction of its size, the present stage's upsample: a 4×4
-    /// footprint that also resolves the march's jitter (true), or the four nearest march pixels
-    /// (false: a quarter of the texture reads over every window pixel, about 30 ms a frame less
-    /// at 1280×720 on lavapipe; the jitter's grain shows up close, docs/fly.md).
-    pub wide_upsample: bool,
     /// A pixel whose ray grazes the layers (between the sea's limb and just above the
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
     /// takes four more rays down its height where its one ray's picture differs from a

@@ -1,6 +1,7 @@
 //! WGSL sources: each stage's file from `shaders/` with the shared `common.wgsl` in front, the
 //! stages that evaluate the cloud (march, section, shadow) with `cloud.wgsl` too, and those that
-//! light or show the scene (march, present, exposure) with `scene.wgsl`.
+//! light or show the scene (march, present, exposure) with `scene.wgsl`, and those that resolve
+//! the march's jitter (present, resolve) with `jitter.wgsl`.
 
 pub const NOISE: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -50,7 +51,14 @@ pub const PRESENT: &str = concat!(
     include_str!("../../shaders/frame.wgsl"),
     include_str!("../../shaders/scene.wgsl"),
     include_str!("../../shaders/fullscreen.wgsl"),
+    include_str!("../../shaders/jitter.wgsl"),
     include_str!("../../shaders/present.wgsl")
+);
+pub const RESOLVE: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/frame.wgsl"),
+    include_str!("../../shaders/jitter.wgsl"),
+    include_str!("../../shaders/resolve.wgsl")
 );
 pub const EMBED: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
@@ -96,12 +104,13 @@ mod tests {
     use super::*;
 
     /// Every stage's source, and whether it binds the frame (has frame.wgsl).
-    const STAGES: [(&str, &str, bool); 10] = [
+    const STAGES: [(&str, &str, bool); 11] = [
         ("noise", NOISE, false),
         ("noise stats", NOISE_STATS, false),
         ("march", MARCH, true),
         ("section", SECTION, true),
         ("present", PRESENT, true),
+        ("resolve", RESOLVE, true),
         ("shadow", SHADOW, true),
         ("exposure", EXPOSURE, true),
         ("reproject", REPROJECT, true),

@@ -9,7 +9,7 @@ use super::frame::FrameUniforms;
 use super::gpu::Gpu;
 use super::settings::{Reprojection, Settings};
 use super::texture::texture_2d;
-use super::{exposure, march, present, reproject, Renderer};
+use super::{exposure, march, present, reproject, resolve, Renderer};
 
 /// One full-size frame's textures: what the march (or the reproject stage) writes and the
 /// exposure and present stages read.
@@ -22,6 +22,17 @@ pub(super) struct FrameSet {
     pub(super) march_bind: wgpu::BindGroup,
     pub(super) present_bind: wgpu::BindGroup,
     pub(super) exposure_bind: wgpu::BindGroup,
+    /// Made on the first frame that enlarges this set into its target.
+    pub(super) enlarged: Option<Enlarged>,
+}
+
+/// A frame set enlarged into its target: its march resolved at its own size (render::resolve)
+/// and the present stage's bind group reading that picture instead of the march's.
+pub(super) struct Enlarged {
+    /// Held for the bind groups.
+    _resolved: wgpu::Texture,
+    pub(super) resolve_bind: [wgpu::BindGroup; 2],
+    pub(super) present_bind: wgpu::BindGroup,
 }
 
 impl FrameSet {
@@ -42,7 +53,40 @@ impl FrameSet {
             exposure_bind: r.exposure.bind_target(r.gpu, &cv, &sv),
             cloud,
             scene,
+            enlarged: None,
         }
+    }
+
+    /// This set's [`Enlarged`] textures and bind groups, made on first use.
+    pub(super) fn enlarged(
+        &mut self,
+        gpu: &Gpu,
+        resolve: &resolve::ResolvePass,
+        present: &present::PresentPass,
+        size: (u32, u32),
+    ) -> &Enlarged {
+        let FrameSet {
+            cloud,
+            scene,
+            enlarged,
+            ..
+        } = self;
+        enlarged.get_or_insert_with(|| {
+            let resolved = texture_2d(
+                &gpu.device,
+                "resolved cloud",
+                size,
+                march::CLOUD_FORMAT,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            );
+            let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+            let (cv, sv, rv) = (view(cloud), view(scene), view(&resolved));
+            Enlarged {
+                resolve_bind: resolve.bind_target(gpu, &cv, &sv, &rv),
+                present_bind: present.bind_target(gpu, &rv, &sv),
+                _resolved: resolved,
+            }
+        })
     }
 }
 
@@ -217,6 +261,13 @@ impl Targets {
         match &self.history {
             Some(h) if self.reprojected && h.shown == 1 => &h.other,
             _ => &self.frame,
+        }
+    }
+
+    pub(super) fn shown_mut(&mut self) -> &mut FrameSet {
+        match &mut self.history {
+            Some(h) if self.reprojected && h.shown == 1 => &mut h.other,
+            _ => &mut self.frame,
         }
     }
 }

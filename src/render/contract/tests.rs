@@ -204,7 +204,7 @@ fn all_diffs(stage: &str, src: &str, table: &[Binding]) -> Vec<String> {
 
 fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
     use crate::render::{
-        atmosphere, exposure, march, noise, present, reproject, section, shader, shadow,
+        atmosphere, exposure, march, noise, present, reproject, resolve, section, shader, shadow,
     };
     // The section's table is the march's groups 0 and 1 and its own: made once, kept (the
     // same for the stages that add the scene's group).
@@ -218,6 +218,7 @@ fn stages() -> Vec<(&'static str, &'static str, &'static [Binding])> {
         ("noise stats", shader::NOISE_STATS, noise::STATS_BINDINGS),
         ("atmosphere", shader::ATMOSPHERE, atmosphere::BINDINGS),
         ("reproject", shader::REPROJECT, reproject::BINDINGS),
+        ("resolve", shader::RESOLVE, resolve::BINDINGS),
         (
             "march",
             shader::MARCH,
