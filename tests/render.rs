@@ -657,6 +657,34 @@ fn the_limb_row_shows_what_its_pixels_cover() {
     );
 }
 
+/// A scene of the synthetic sample at `fast` and a fixed exposure `ev`: its map, view and
+/// settings.
+fn fast_scene(name: &str, ev: f64) -> (CloudMap, View, Settings) {
+    let sample = stratus::scenes::synthetic();
+    let map = sample.map().expect("the sample ingests");
+    let scene = sample.scene(name).expect("the bench's scene");
+    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let mut s = Settings::new(Preset::Fast, time);
+    s.exposure_auto = false;
+    s.exposure_ev = ev;
+    (map, scene.view, s)
+}
+
+/// `view` marched at `march` and enlarged into `out` as the window does (`scaled::render`):
+/// its RGBA bytes.
+fn enlarged(
+    map: &CloudMap,
+    view: View,
+    march: (u32, u32),
+    out: (u32, u32),
+    s: &Settings,
+) -> Vec<u8> {
+    let mut r = renderer();
+    r.set_map(map);
+    let (img, _) = stratus::scaled::render(&mut r, &view, march, out, s).expect("render");
+    img.into_raw()
+}
+
 /// A march enlarged into its target (the window's render scale, `render --render-scale`) takes
 /// the grazing rays at every preset: there a march pixel is four target pixels tall, and a far
 /// deck's top, thinner than that, was hit or missed along its row in runs, bars four pixels
@@ -666,22 +694,10 @@ fn the_limb_row_shows_what_its_pixels_cover() {
 /// grazing rays (lavapipe).
 #[test]
 fn an_enlarged_march_takes_the_grazing_rays() {
-    let sample = stratus::scenes::synthetic();
-    let map = sample.map().expect("the sample ingests");
-    let scene = sample.scene("inside-layer").expect("the bench's scene");
-    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
-    let mut s = Settings::new(Preset::Fast, time);
-    s.exposure_auto = false;
-    s.exposure_ev = -0.18;
+    let (map, view, s) = fast_scene("inside-layer", -0.18);
     let (w, h) = (640, 360);
-    let full = render(&map, scene.view, w, h, &s).to_image().into_raw();
-    let enlarged = {
-        let mut r = renderer();
-        r.set_map(&map);
-        let (img, _) = stratus::scaled::render(&mut r, &scene.view, (w / 4, h / 4), (w, h), &s)
-            .expect("render");
-        img.into_raw()
-    };
+    let full = render(&map, view, w, h, &s).to_image().into_raw();
+    let enlarged = enlarged(&map, view, (w / 4, h / 4), (w, h), &s);
     let row_len = (w * 4) as usize;
     let (row, worst) = full
         .chunks(row_len)
@@ -714,21 +730,9 @@ fn an_enlarged_march_takes_the_grazing_rays() {
 #[test]
 fn an_enlarged_march_shows_its_own_sizes_picture() {
     use stratus::footprint_bench::{linear_box, linear_box_rgba, rmse};
-    let sample = stratus::scenes::synthetic();
-    let map = sample.map().expect("the sample ingests");
-    let scene = sample.scene("above-noon").expect("the bench's scene");
-    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
-    let mut s = Settings::new(Preset::Fast, time);
-    s.exposure_auto = false;
-    s.exposure_ev = 0.0;
-    let own = linear_box(&render(&map, scene.view, 160, 90, &s), 1);
-    let enlarged = {
-        let mut r = renderer();
-        r.set_map(&map);
-        let (img, _) = stratus::scaled::render(&mut r, &scene.view, (160, 90), (640, 360), &s)
-            .expect("render");
-        linear_box_rgba(img.as_raw(), 640, 4)
-    };
+    let (map, view, s) = fast_scene("above-noon", 0.0);
+    let own = linear_box(&render(&map, view, 160, 90, &s), 1);
+    let enlarged = linear_box_rgba(&enlarged(&map, view, (160, 90), (640, 360), &s), 640, 4);
     let e = rmse(&enlarged, &own);
     eprintln!("enlarged, box-averaged, against the march's own size: {e:.4}");
     assert!(

@@ -30,16 +30,8 @@ pub const BINDINGS: &[Binding] = &[
         binding: 0,
         resource: Resource::StorageTexture(LUT_FORMAT, 2),
     },
-    Binding {
-        group: 2,
-        binding: 0,
-        resource: Resource::Texture2d { filterable: true },
-    },
-    Binding {
-        group: 2,
-        binding: 1,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(2, 0),
+    contract::texture(2, 1),
     Binding {
         group: 2,
         binding: 2,

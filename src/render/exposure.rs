@@ -36,17 +36,9 @@ crate::gpu_struct! {
 /// Every binding of exposure.wgsl.
 pub const OWN_BINDINGS: &[Binding] = &[
     contract::frame(0, 0),
-    Binding {
-        group: 1,
-        binding: 0,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(1, 0),
     // The background behind the cloud (the march's scene texture).
-    Binding {
-        group: 1,
-        binding: 1,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(1, 1),
     Binding {
         group: 2,
         binding: 0,

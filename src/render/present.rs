@@ -13,17 +13,9 @@ use super::shader;
 /// texture (the output size's) and the exposure stage's result (the device's).
 pub const BINDINGS: &[Binding] = &[
     contract::frame(0, 0),
-    Binding {
-        group: 1,
-        binding: 0,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(1, 0),
     // The background behind the cloud and each pixel's distance (the march's scene texture).
-    Binding {
-        group: 1,
-        binding: 1,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(1, 1),
     Binding {
         group: 2,
         binding: 0,

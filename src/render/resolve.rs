@@ -13,16 +13,8 @@ use super::shader;
 /// resolve.wgsl's bindings: the frame, the march's cloud and scene textures, the resolved cloud.
 pub const BINDINGS: &[Binding] = &[
     contract::frame(0, 0),
-    Binding {
-        group: 1,
-        binding: 0,
-        resource: Resource::Texture2d { filterable: true },
-    },
-    Binding {
-        group: 1,
-        binding: 1,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(1, 0),
+    contract::texture(1, 1),
     Binding {
         group: 2,
         binding: 0,

@@ -63,17 +63,9 @@ pub const SCENE_BINDINGS: &[Binding] = &[
     },
     contract::params(SCENE_GROUP, 2),
     // The atmosphere's sky-view table (render::atmosphere).
-    Binding {
-        group: SCENE_GROUP,
-        binding: 3,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(SCENE_GROUP, 3),
     // The map's ground (render::ground).
-    Binding {
-        group: SCENE_GROUP,
-        binding: 4,
-        resource: Resource::Texture2d { filterable: true },
-    },
+    contract::texture(SCENE_GROUP, 4),
     // The atmosphere's aerial-perspective table.
     Binding {
         group: SCENE_GROUP,

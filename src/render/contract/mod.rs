@@ -185,6 +185,15 @@ pub const fn uniform<T: GpuStruct>(group: u32, binding: u32) -> Binding {
     }
 }
 
+/// A filterable 2-D texture read by the stage (a frame's cloud or scene texture, a table).
+pub const fn texture(group: u32, binding: u32) -> Binding {
+    Binding {
+        group,
+        binding,
+        resource: Resource::Texture2d { filterable: true },
+    }
+}
+
 /// The frame's binding (`FrameUniforms`, `f: Frame` in WGSL): a read-only storage buffer, not a
 /// uniform buffer. Mesa's lavapipe compiles a variant of a shader for each set of values of the
 /// uniforms its branches depend on ("inlined uniforms"); the camera's up and the Sun's
