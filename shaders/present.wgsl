@@ -25,37 +25,6 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
-// How much a march pixel counts in the upsample beside the nearest one: less as its opacity
-// (da) and its distance (km, 0 for sky) differ.
-fn edge_weight(da: f32, d: f32, near_d: f32) -> f32 {
-    let far = max(max(d, near_d), 1e-3);
-    let dd = select(abs(d - near_d) / far, 1.0, (d > 0.0) != (near_d > 0.0));
-    return 1.0 / (1.0 + 16.0 * abs(da) + 8.0 * dd);
-}
-
-// The upsample's running sums: cloud and its weight, background and its weight.
-struct Upsample {
-    c: vec4<f32>,
-    wsum: f32,
-    b: vec3<f32>,
-    bw: f32,
-};
-
-// One march pixel into the upsample at base weight w, lowered for the cloud by how far its
-// opacity and distance are from the nearest march pixel's (near), for the background by how
-// far its distance is.
-fn upsample_tap(acc: ptr<function, Upsample>, p: vec2<i32>, dims: vec2<i32>, w: f32, near: vec2<f32>) {
-    let at = clamp(p, vec2<i32>(0), dims - 1);
-    let t = textureLoad(cloud, at, 0);
-    let sc = textureLoad(scene, at, 0);
-    let wc = (w + 1e-4) * edge_weight(t.a - near.x, sc.a, near.y);
-    (*acc).c += wc * t;
-    (*acc).wsum += wc;
-    let wbg = w * edge_weight(0.0, sc.a, near.y);
-    (*acc).b += wbg * sc.rgb;
-    (*acc).bw += wbg;
-}
-
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     load_frame();
@@ -66,27 +35,28 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
     var bg: vec3<f32>;
     if (UPSAMPLE) {
-        // The window marches at a fraction of its size: an edge-aware upsample (a joint
-        // bilateral filter on the march's own opacity and depth) of the four march pixels
-        // around (bilinear weights), whose jitter the resolve stage has already resolved: a
-        // march pixel counts less the more its opacity and distance differ from the nearest
-        // one's, so a cloud's edge stays as sharp as the march found it instead of softening.
-        // A 4×4 footprint over the unresolved march here (bilinear between 3×3 means) drew the
-        // same picture at four times the texture reads over every window pixel, about 17 ms
-        // of a 1280×720 frame on lavapipe (docs/performance.md, "The window's frame").
+        // The window marches at a fraction of its size: the four march pixels around,
+        // bilinear, from the picture the resolve stage has already resolved. Not edge-aware:
+        // weighting each by its opacity and distance against the nearest one's kept the
+        // nearest pixel wherever they differed, which drew every cloud edge as 4-px steps and
+        // the far deck's rim on the haze line as 4-px blocks, and erred more than bilinear
+        // against the full march (docs/footprint.md, "The enlarged march, bilinear"). A 4×4
+        // footprint over the unresolved march here drew the picture of a resolve at four
+        // times the texture reads over every window pixel, about 17 ms of a 1280×720 frame
+        // on lavapipe (docs/performance.md, "The window's frame").
         let q = px - 0.5;
         let fr = q - floor(q);
         let i0 = vec2<i32>(floor(q));
-        let near = vec2<f32>(textureLoad(cloud, near_at, 0).a, textureLoad(scene, near_at, 0).a);
-        var acc = Upsample(vec4<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+        c = vec4<f32>(0.0);
+        bg = vec3<f32>(0.0);
         for (var j = 0; j < 2; j++) {
             for (var i = 0; i < 2; i++) {
                 let w = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1);
-                upsample_tap(&acc, i0 + vec2<i32>(i, j), dims, w, near);
+                let at = clamp(i0 + vec2<i32>(i, j), vec2<i32>(0), dims - 1);
+                c += w * textureLoad(cloud, at, 0);
+                bg += w * textureLoad(scene, at, 0).rgb;
             }
         }
-        c = acc.c / max(acc.wsum, 1e-6);
-        bg = acc.b / max(acc.bw, 1e-6);
     } else {
         bg = textureLoad(scene, near_at, 0).rgb;
         c = jitter_resolved(near_at, dims, resolve_weights(f.step_growth));

@@ -1,6 +1,6 @@
 //! Present stage: a full-screen triangle (shaders/present.wgsl) that composites the cloud
-//! texture over the background the march found (sky, Sun, Moon, stars, ground), upsampling
-//! edge-aware where the march was smaller (from its picture resolved by render::resolve), and
+//! texture over the background the march found (sky, Sun, Moon, stars, ground), enlarging
+//! bilinearly where the march was smaller (from its picture resolved by render::resolve), and
 //! tone-maps into the target format.
 
 use super::contract::{self, Binding, Resource};
