@@ -45,7 +45,7 @@ override STILL: bool = false;
 const STILL_PX: f32 = 0.25;
 
 // Fresh samples around a pixel (the moving view's bilinear footprint, the still view's
-// lattice): their range bounds the history kept (no ghosts) and their edge-aware mean stands in
+// lattice): their range bounds the history kept (no ghosts) and their bilinear mean stands in
 // where there is none. Both views gather it with fill_add.
 struct Fill {
     lo_c: vec4<f32>,
@@ -62,17 +62,17 @@ fn fill_empty() -> Fill {
         vec4<f32>(0.0), vec3<f32>(0.0), 0.0);
 }
 
-// Adds the sample (cloud c, scene s) at bilinear weight wb, weighed down across a change of
-// distance from the nearest sample's (near_dist, km; 0: sky) and by `edge`, the caller's
-// penalty for a change of opacity (0: none).
-fn fill_add(fill: ptr<function, Fill>, c: vec4<f32>, s: vec4<f32>, wb: f32, near_dist: f32, edge: f32) {
+// Adds the sample (cloud c, scene s) at bilinear weight wb. Not weighed down across a change
+// of opacity or distance: against the nearest sample's, on a lattice n pixels apart, that kept
+// the nearest one wherever they differed and turned the fill into n-pixel blocks, and it erred
+// more than bilinear against the full march (docs/footprint.md, "The enlarged march,
+// bilinear").
+fn fill_add(fill: ptr<function, Fill>, c: vec4<f32>, s: vec4<f32>, wb: f32) {
     (*fill).lo_c = min((*fill).lo_c, c);
     (*fill).hi_c = max((*fill).hi_c, c);
     (*fill).lo_s = min((*fill).lo_s, s.rgb);
     (*fill).hi_s = max((*fill).hi_s, s.rgb);
-    let far = max(max(s.a, near_dist), 1e-3);
-    let dd = select(abs(s.a - near_dist) / far, 1.0, (s.a > 0.0) != (near_dist > 0.0));
-    let w = wb / (1.0 + edge + 8.0 * dd) + 1e-4;
+    let w = wb + 1e-4;
     (*fill).up_c += w * c;
     (*fill).up_s += w * s.rgb;
     (*fill).wsum += w;
@@ -107,9 +107,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let fr = q - floor(q);
     let nearest = clamp(vec2<i32>(round(q)), vec2<i32>(0), cells - 1);
     let near_scene = textureLoad(fresh_scene, nearest, 0);
-    let near_a = textureLoad(fresh_cloud, nearest, 0).a;
     // The fresh samples' bilinear footprint (Fill: where the march now finds clear air around
-    // a pixel, no history keeps cloud there), its mean weighed down across a change of opacity.
+    // a pixel, no history keeps cloud there).
     var fill = fill_empty();
     for (var j = 0; j < 2; j++) {
         for (var i = 0; i < 2; i++) {
@@ -117,7 +116,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let c = textureLoad(fresh_cloud, at, 0);
             let wb = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1);
             let s = textureLoad(fresh_scene, at, 0);
-            fill_add(&fill, c, s, wb, near_scene.a, 16.0 * abs(c.a - near_a));
+            fill_add(&fill, c, s, wb);
         }
     }
     var out_c = fill.up_c / fill.wsum;
@@ -209,7 +208,7 @@ fn own_march(q: vec2<u32>, n: u32) -> Px {
 // A still view (the camera has not moved for k + 1 frames, rp.still): a pixel marched in the
 // last max_age frames is kept whole (a still view gathers every pixel of its cell in n²
 // frames). Any other pixel is made from the still lattice, the pixels around it that were
-// marched recently (render::reproject::still_lattice): edge-aware bilinear from them once the
+// marched recently (render::reproject::still_lattice): bilinear from them once the
 // lattice is at most half a large cell (8 px or more: the last frame's picture, from the fresh
 // subset or a moving view's coarse history, is no better than that then), else
 // the last frame's pixel (no pop when the camera stops: it was the moving view's reprojected
@@ -247,9 +246,7 @@ fn still_pixel(p: vec2<u32>, size: vec2<u32>, n: u32) {
     let near = px[best];
     var fill = fill_empty();
     for (var i = 0; i < 4; i++) {
-        // Across a change of distance only (no opacity term): within the cloud the opacity
-        // varies at the lattice's own scale, and weighting by it turns the fill into blocks.
-        fill_add(&fill, px[i].c, px[i].s, wb[i], near.s.a, 0.0);
+        fill_add(&fill, px[i].c, px[i].s, wb[i]);
     }
     if (st * 2u <= n && n >= 8u) {
         textureStore(out_cloud, p, fill.up_c / fill.wsum);

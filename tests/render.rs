@@ -691,7 +691,7 @@ fn enlarged(
 /// high in the ¼ window. `fast` (no grazing rays at its own size), the bench's inside-layer
 /// scene at 640×360 from a 160×90 march, against the full 640×360 march: the worst row's RMSE
 /// (0..1 of the tone-mapped sRGB picture, row 184 of 360) 0.053 with one ray, 0.034 with the
-/// grazing rays (lavapipe).
+/// grazing rays (lavapipe), 0.027 since the enlargement is bilinear.
 #[test]
 fn an_enlarged_march_takes_the_grazing_rays() {
     let (map, view, s) = fast_scene("inside-layer", -0.18);
@@ -726,7 +726,8 @@ fn an_enlarged_march_takes_the_grazing_rays() {
 /// jittered ray became a block of target pixels, the grain of `fast`'s long steps through a
 /// thin layer drawn 4× larger (the ¼ window's blocks and specks). The bench's above-noon scene
 /// at `fast`, 640×360 from a 160×90 march, box-averaged back to 160×90, against the 160×90
-/// picture: linear-RGB RMSE 0.0080 unresolved, 0.0048 resolved (lavapipe).
+/// picture: linear-RGB RMSE 0.0080 unresolved, 0.0048 resolved (lavapipe), 0.0042 since the
+/// enlargement is bilinear.
 #[test]
 fn an_enlarged_march_shows_its_own_sizes_picture() {
     use stratus::footprint_bench::{linear_box, linear_box_rgba, rmse};
@@ -738,6 +739,50 @@ fn an_enlarged_march_shows_its_own_sizes_picture() {
     assert!(
         e < 0.0064,
         "the enlarged march differs from its own size's picture by RMSE {e:.4}"
+    );
+}
+
+/// An enlarged march draws no blocks: the present stage enlarges the resolved march bilinearly,
+/// so between neighbouring target pixels the picture changes as much across a march pixel's
+/// border as within it. Weighted by opacity and distance against the nearest march pixel (a
+/// joint bilateral filter guided by the march itself) it kept the nearest pixel wherever the
+/// four differed, and every cloud edge became a staircase of 4-px steps, the far deck's rim
+/// 4-px blocks (docs/footprint.md, "The enlarged march, bilinear"). The bench's above-noon
+/// scene at `fast`, 640×360 from a 160×90 march: the mean step between neighbours across the
+/// march pixels' borders over the mean step within them, along rows and columns, 1.57
+/// edge-aware, 1.02 bilinear (lavapipe).
+#[test]
+fn an_enlarged_march_draws_no_blocks() {
+    let (map, view, s) = fast_scene("above-noon", 0.0);
+    let (w, h) = (640usize, 360usize);
+    let img = enlarged(&map, view, (160, 90), (640, 360), &s);
+    let at = |x: usize, y: usize, c: usize| f64::from(img[(y * w + x) * 4 + c]);
+    let step = |a: (usize, usize), b: (usize, usize)| -> f64 {
+        (0..3)
+            .map(|c| (at(a.0, a.1, c) - at(b.0, b.1, c)).abs())
+            .sum()
+    };
+    // Sums and counts of the steps across a border (a pixel at 4k beside one at 4k − 1) and
+    // within a march pixel.
+    let (mut across, mut n_across, mut within, mut n_within) = (0.0, 0u32, 0.0, 0u32);
+    for y in 1..h {
+        for x in 1..w {
+            for (d, i) in [(step((x, y), (x - 1, y)), x), (step((x, y), (x, y - 1)), y)] {
+                if i % 4 == 0 {
+                    across += d;
+                    n_across += 1;
+                } else {
+                    within += d;
+                    n_within += 1;
+                }
+            }
+        }
+    }
+    let ratio = (across / f64::from(n_across)) / (within / f64::from(n_within)).max(1e-9);
+    eprintln!("steps across march pixels' borders over steps within them: {ratio:.2}");
+    assert!(
+        within > 0.0 && ratio < 1.25,
+        "the enlarged march steps {ratio:.2}× as much across its pixels' borders as within them"
     );
 }
 
