@@ -181,6 +181,22 @@ impl AtmospherePass {
         self.last = None;
     }
 
+    /// Make the next update build the sky-view table for exactly this frame's Sun and altitude
+    /// unless it was made for them: a single picture's sky is then its own, not one made within
+    /// [`REBUILD_SUN_DEG`] of it for whatever the renderer drew before.
+    pub fn require_exact(&mut self, u: &FrameUniforms) {
+        if self.last != Some(Self::made_for(u)) {
+            self.last = None;
+        }
+    }
+
+    /// The Sun's elevation and the camera's altitude, what the sky-view table is made for.
+    fn made_for(u: &FrameUniforms) -> (f32, f32) {
+        let up = glam::Vec3::from(u.cam_up);
+        let sun_el = up.dot(glam::Vec3::from(u.sun_dir)).clamp(-1.0, 1.0).asin();
+        (sun_el, u.cam_alt_m)
+    }
+
     /// The sky-view table, for the scene's group.
     pub fn sky_view(&self) -> &wgpu::Texture {
         &self.sky
@@ -195,9 +211,8 @@ impl AtmospherePass {
     /// tables on the first frame, the sky-view table when the Sun's elevation at the camera or
     /// the camera's altitude moved. Returns whether the sky-view table was made.
     pub fn update(&mut self, enc: &mut wgpu::CommandEncoder, u: &FrameUniforms) -> bool {
-        let up = glam::Vec3::from(u.cam_up);
-        let sun_el = up.dot(glam::Vec3::from(u.sun_dir)).clamp(-1.0, 1.0).asin();
-        let now = (sun_el, u.cam_alt_m);
+        let now = Self::made_for(u);
+        let sun_el = now.0;
         let stale = self.last.is_none_or(|(el, alt)| {
             (el - sun_el).abs() > REBUILD_SUN_DEG.to_radians() as f32
                 || (alt - u.cam_alt_m).abs() > REBUILD_ALT_M.max(0.02 * alt.abs())

@@ -359,13 +359,22 @@ impl Renderer {
         let pipeline = self.present.prepare(&self.gpu, target_format, resample);
         let plan = self.plan_reprojection(view, (width, height), settings);
         let step = self.march_step(plan.as_ref(), &mut uniforms, (width, height));
+        // A single picture (no history, its exposure its own at once): the same inputs make
+        // the same picture in any order (the bench's reference and every row compared with
+        // it, `render --repeat`, the footprint bench's views).
+        let single = settings.exposure_rate >= 1.0 && settings.reprojection == Reprojection::Off;
+        if single {
+            // Lit by its own Sun: the sky table and the light volume made for exactly it, not
+            // kept from the picture before within their tolerance or while a new one is made
+            // a slice a frame.
+            self.atmosphere.require_exact(&uniforms);
+            self.shadow.require_exact(&uniforms, self.map_generation);
+        }
         self.encode_light(enc, &uniforms, settings);
         let variant = self.march_variant(view, &uniforms, settings);
-        if settings.exposure_rate >= 1.0 && settings.reprojection == Reprojection::Off {
-            // A single picture (no history, its exposure its own at once) averages its split
-            // and grazing pixels at the Sun's exposure, not at the exposure of whatever frame
-            // this renderer showed before: the same inputs make the same picture in any order
-            // (the bench's reference and every row compared with it, `render --repeat`).
+        if single {
+            // Its split and grazing pixels averaged at the Sun's exposure, not at the exposure
+            // of whatever frame this renderer showed before.
             enc.clear_buffer(&self.exposure.state, 0, None);
         }
         self.encode_march(enc, variant, &step, plan.is_some(), (width, height));
