@@ -288,6 +288,10 @@ fn a_cloud_shadow_falls_where_geometry_puts_it() {
 #[test]
 fn a_moving_sun_remakes_the_light_over_frames_and_shows_it_whole() {
     // The round cloud of the shadow test, seen from 120 km; the Sun then sinks from 45° to 30°.
+    // Frames of a sequence, as the window's and `flight`'s (an exposure that adapts over
+    // frames, though fixed here): a single picture makes its light whole at once
+    // (tests/render.rs `a_picture_is_lit_by_its_own_sun_after_another`), and so does a
+    // single picture after this sequence, below.
     let map = made_up(|la, lo| {
         let d = ((la - 45.0).powi(2) + ((lo - 10.0) * 0.707).powi(2)).sqrt();
         if d < 0.07 {
@@ -300,6 +304,7 @@ fn a_moving_sun_remakes_the_light_over_frames_and_shows_it_whole() {
     cam.fov_deg = 30.0;
     let view = View::Perspective(cam);
     let mut s = sun_east_settings();
+    s.exposure_rate = 0.5;
     let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &map);
     r.render(&view, 96, 96, &s).expect("a frame");
     let (made, _) = r.light_builds();
@@ -326,6 +331,13 @@ fn a_moving_sun_remakes_the_light_over_frames_and_shows_it_whole() {
     // And the shadow moved with the Sun: the frame differs from the first Sun's.
     let mut before = sun_east_settings();
     before.sun_override = Some(DVec3::new(1.0, 0.0, 1.0).normalize());
+    let built = fresh.light_builds().0;
     let old = fresh.render(&view, 96, 96, &before).expect("a frame");
     assert!(old.pixels != whole.pixels);
+    // A single picture (`before`'s exposure rate is 1) made its light whole at once.
+    assert_eq!(
+        fresh.light_builds().0,
+        built + 1,
+        "a single picture's light"
+    );
 }
