@@ -185,18 +185,15 @@ fn a_picture_does_not_depend_on_the_frame_before() {
 /// against it drawn first after the map was set.
 #[test]
 fn a_picture_is_lit_by_its_own_sun_after_another() {
-    let sample = stratus::scenes::synthetic();
-    let map = sample.map().expect("the sample ingests");
-    let scene = sample.scene("above-noon").expect("the bench's scene");
-    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let (map, view, time) = bench_scene("above-noon");
     let own = Settings::new(Preset::Balanced, time);
     let later = Settings::new(Preset::Balanced, time + chrono::Duration::hours(3));
     let mut r = renderer();
     r.set_map(&map);
-    let first = r.render(&scene.view, 160, 90, &own).expect("render");
+    let first = r.render(&view, 160, 90, &own).expect("render");
     r.set_map(&map);
-    let other = r.render(&scene.view, 160, 90, &later).expect("render");
-    let after = r.render(&scene.view, 160, 90, &own).expect("render");
+    let other = r.render(&view, 160, 90, &later).expect("render");
+    let after = r.render(&view, 160, 90, &own).expect("render");
     let moved = first
         .pixels
         .iter()
@@ -699,14 +696,20 @@ fn the_limb_row_shows_what_its_pixels_cover() {
 /// A scene of the synthetic sample at `fast` and a fixed exposure `ev`: its map, view and
 /// settings.
 fn fast_scene(name: &str, ev: f64) -> (CloudMap, View, Settings) {
+    let (map, view, time) = bench_scene(name);
+    let mut s = Settings::new(Preset::Fast, time);
+    s.exposure_auto = false;
+    s.exposure_ev = ev;
+    (map, view, s)
+}
+
+/// A scene of the synthetic sample: its map, view and time.
+fn bench_scene(name: &str) -> (CloudMap, View, DateTime<Utc>) {
     let sample = stratus::scenes::synthetic();
     let map = sample.map().expect("the sample ingests");
     let scene = sample.scene(name).expect("the bench's scene");
     let time = scene.time.or(map.meta.source.valid_time).expect("a time");
-    let mut s = Settings::new(Preset::Fast, time);
-    s.exposure_auto = false;
-    s.exposure_ev = ev;
-    (map, scene.view, s)
+    (map, scene.view, time)
 }
 
 /// `view` marched at `march` and enlarged into `out` as the window does (`scaled::render`):

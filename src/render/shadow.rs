@@ -67,6 +67,15 @@ pub fn volume_size(region: &Region) -> (u32, u32, u32) {
     (side(wide, tall), side(tall, wide), LEVELS)
 }
 
+/// The direction of the light the volume is made for: the Sun, or the Moon when it is the key.
+fn key_light(u: &FrameUniforms) -> [f32; 3] {
+    if u.sun_is_key != 0 {
+        u.sun_dir
+    } else {
+        u.moon_dir
+    }
+}
+
 /// What the volume depends on: it is made again when any of these change.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Inputs {
@@ -251,11 +260,7 @@ impl ShadowPass {
     /// of it or [`SLICES`] frames from being replaced (the footprint bench's noon view after
     /// the same camera at dusk: RMSE against its twin 0.0127 lit so, 0.0131 by its own light).
     pub fn require_exact(&mut self, u: &FrameUniforms, map_generation: u64) {
-        let key_dir = if u.sun_is_key != 0 {
-            u.sun_dir
-        } else {
-            u.moon_dir
-        };
+        let key_dir = key_light(u);
         if self.last == Some(Inputs::of(u, key_dir, map_generation)) {
             self.building = None;
         } else {
@@ -283,11 +288,7 @@ impl ShadowPass {
         switches: (bool, bool, bool),
         map_generation: u64,
     ) -> bool {
-        let key_dir = if u.sun_is_key != 0 {
-            u.sun_dir
-        } else {
-            u.moon_dir
-        };
+        let key_dir = key_light(u);
         let inputs = Inputs::of(u, key_dir, map_generation);
         let params = self.look_up(u, key_dir, switches);
         // The ground's part can change without the volume (the preset's terrain switch).
