@@ -168,12 +168,7 @@ fn a_picture_does_not_depend_on_the_frame_before() {
     render(&map, noon, 160, 90, &s_noon);
     let again = render(&map, dusk, 160, 90, &s);
     assert!(first.stats.reworked > 0, "the limb's pixels take two rays");
-    let differ = first
-        .pixels
-        .iter()
-        .zip(&again.pixels)
-        .filter(|(a, b)| a != b)
-        .count();
+    let differ = bytes_differ(&first, &again);
     assert_eq!(differ, 0, "{differ} bytes differ after another view");
 }
 
@@ -194,19 +189,9 @@ fn a_picture_is_lit_by_its_own_sun_after_another() {
     r.set_map(&map);
     let other = r.render(&view, 160, 90, &later).expect("render");
     let after = r.render(&view, 160, 90, &own).expect("render");
-    let moved = first
-        .pixels
-        .iter()
-        .zip(&other.pixels)
-        .filter(|(a, b)| a != b)
-        .count();
+    let moved = bytes_differ(&first, &other);
     assert!(moved > 1000, "three hours later only {moved} bytes differ");
-    let differ = first
-        .pixels
-        .iter()
-        .zip(&after.pixels)
-        .filter(|(a, b)| a != b)
-        .count();
+    let differ = bytes_differ(&first, &after);
     assert_eq!(
         differ, 0,
         "{differ} bytes differ after the same view at another time"
@@ -701,6 +686,15 @@ fn fast_scene(name: &str, ev: f64) -> (CloudMap, View, Settings) {
     s.exposure_auto = false;
     s.exposure_ev = ev;
     (map, view, s)
+}
+
+/// How many bytes of two pictures differ.
+fn bytes_differ(a: &Output, b: &Output) -> usize {
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| x != y)
+        .count()
 }
 
 /// A scene of the synthetic sample: its map, view and time.
