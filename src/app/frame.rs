@@ -178,41 +178,29 @@ impl Running {
         })
     }
 
-    /// Record egui's pass over the frame; returns egui's own command buffers.
+    /// Record the panel and HUD over the frame (app::overlay); returns egui's own command
+    /// buffers.
     fn draw_ui(
         &mut self,
         enc: &mut wgpu::CommandEncoder,
         target: &wgpu::TextureView,
-        out: egui::FullOutput,
+        mut out: egui::FullOutput,
     ) -> Vec<wgpu::CommandBuffer> {
+        let platform = std::mem::take(&mut out.platform_output);
         self.ui
             .state
-            .handle_platform_output(&self.screen.window, out.platform_output);
+            .handle_platform_output(&self.screen.window, platform);
         let gpu = &self.renderer.gpu;
-        let screen = egui_wgpu::ScreenDescriptor {
-            size_in_pixels: [self.screen.config.width, self.screen.config.height],
-            pixels_per_point: out.pixels_per_point,
-        };
-        let prims = self.ui.ctx.tessellate(out.shapes, out.pixels_per_point);
-        for (id, deltas) in &out.textures_delta.set {
-            for delta in deltas {
-                self.ui
-                    .renderer
-                    .update_texture(&gpu.device, &gpu.queue, *id, delta);
-            }
-        }
-        let extra = self
-            .ui
-            .renderer
-            .update_buffers(&gpu.device, &gpu.queue, enc, &prims, &screen);
-        {
-            let pass = crate::render::pipeline::over_pass(enc, "egui", target);
-            let mut pass = pass.forget_lifetime();
-            self.ui.renderer.render(&mut pass, &prims, &screen);
-        }
-        for id in &out.textures_delta.free {
-            self.ui.renderer.free_texture(id);
-        }
+        let size = [self.screen.config.width, self.screen.config.height];
+        let (extra, _) = self.ui.overlay.draw(
+            &gpu.device,
+            &gpu.queue,
+            enc,
+            target,
+            size,
+            &self.ui.ctx,
+            out,
+        );
         extra
     }
 

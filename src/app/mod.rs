@@ -9,6 +9,7 @@
 pub mod daylight;
 mod frame;
 pub mod moment;
+pub mod overlay;
 pub mod panel;
 pub mod pilot;
 pub mod start;
@@ -83,11 +84,11 @@ struct Screen {
     can_read: bool,
 }
 
-/// egui: its context, its winit glue and its wgpu renderer.
+/// egui: its context, its winit glue and the layer its renderer draws into.
 struct Ui {
     ctx: egui::Context,
     state: egui_winit::State,
-    renderer: egui_wgpu::Renderer,
+    overlay: overlay::Overlay,
 }
 
 /// Keys held and the mouse-look drag.
@@ -261,8 +262,7 @@ impl App {
             None,
             Some(gpu.device.limits().max_texture_dimension_2d as usize),
         );
-        let ui_renderer =
-            egui_wgpu::Renderer::new(&gpu.device, screen.config.format, Default::default());
+        let overlay = overlay::Overlay::new(&gpu.device, screen.config.format);
         let mut renderer = Renderer::new(gpu, &self.opts.map);
         renderer.set_realtime(true);
         let timeline = self.opts.timeline.take();
@@ -290,7 +290,7 @@ impl App {
             ui: Ui {
                 ctx,
                 state,
-                renderer: ui_renderer,
+                overlay,
             },
             renderer,
             pilot: start_pilot(&self.opts.map, self.opts.time.unwrap_or(valid)),

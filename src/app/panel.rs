@@ -168,9 +168,13 @@ pub fn solar_time(utc: DateTime<Utc>, lon: f64) -> String {
 }
 
 pub fn hud(ui: &mut egui::Ui, h: &Hud) {
+    // Clipped to the view beside the panel: its shapes then make a mesh of their own, which
+    // the overlay redraws alone as the numbers change (app::overlay).
+    let view = ui.available_rect_before_wrap();
     egui::Area::new(egui::Id::unique("hud"))
         .fixed_pos(egui::pos2(10.0, 10.0))
         .show(ui.ctx(), |ui| {
+            ui.set_clip_rect(view);
             egui::Frame::popup(ui.style()).show(ui, |ui| {
                 if let Some(f) = &h.follow {
                     ui.monospace(f);

@@ -65,6 +65,11 @@ pub const EMBED: &str = concat!(
     include_str!("../../shaders/fullscreen.wgsl"),
     include_str!("../../shaders/embed.wgsl")
 );
+/// The window's panel-and-HUD layer laid over a frame (app::overlay).
+pub const OVERLAY: &str = concat!(
+    include_str!("../../shaders/fullscreen.wgsl"),
+    include_str!("../../shaders/overlay.wgsl")
+);
 
 pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
     let source = if device.adapter_info().device_type == wgpu::DeviceType::Cpu {
@@ -104,7 +109,7 @@ mod tests {
     use super::*;
 
     /// Every stage's source, and whether it binds the frame (has frame.wgsl).
-    const STAGES: [(&str, &str, bool); 11] = [
+    const STAGES: [(&str, &str, bool); 12] = [
         ("noise", NOISE, false),
         ("noise stats", NOISE_STATS, false),
         ("march", MARCH, true),
@@ -116,6 +121,7 @@ mod tests {
         ("reproject", REPROJECT, true),
         ("atmosphere", ATMOSPHERE, true),
         ("embed", EMBED, false),
+        ("overlay", OVERLAY, false),
     ];
 
     /// Every stage parses and validates with naga, without a GPU.
