@@ -90,9 +90,7 @@ pub fn render(
     });
     let tv = target.create_view(&Default::default());
     let mut enc = dev.create_command_encoder(&Default::default());
-    r.encode(
-        &mut enc, view, march.0, march.1, settings, &tv, FORMAT, out.0,
-    )?;
+    r.encode(&mut enc, view, march.0, march.1, settings, &tv, FORMAT, out)?;
     let rb = Pending::texture(&r.gpu, &mut enc, &target, 4);
     r.gpu.queue.submit([enc.finish()]);
     let pixels = rb.finish(&r.gpu)?;

@@ -189,11 +189,29 @@ fn window_shows_clouds_and_the_panel() {
         dir.path().join("cloudy-shot.png"),
         dir.path().join("clear-shot.png"),
     );
+    let mut march_w = Vec::new();
     for (m, s) in [(&cloudy, &s1), (&clear, &s0)] {
         let o = fly(Some(&x.display), m, s);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "stratus fly failed: {err}");
         assert!(!err.contains("panicked"), "{err}");
+        // "(march WxH, preset)": the march's size, from the `--frames` summary on stdout.
+        let out = String::from_utf8_lossy(&o.stdout);
+        let w = out
+            .split("(march ")
+            .nth(1)
+            .and_then(|t| t.split('x').next())
+            .and_then(|t| t.parse::<u32>().ok());
+        march_w.push(w.unwrap_or_else(|| panic!("no march size in: {out}")));
+    }
+    // The clouds are marched beside the panel, not under it: at the CPU adapter's ¼ render
+    // scale a march a quarter of the view's width, which ends where the panel begins (about
+    // 290 px of the 640 are the panel's).
+    for w in &march_w {
+        assert!(
+            (70..=100).contains(w),
+            "march {w} px wide: not a quarter of the view beside the panel"
+        );
     }
     let (a, b) = (Shot::load(&s1), Shot::load(&s0));
     assert_eq!((a.w, a.h), (640, 360), "screenshot is the window's size");

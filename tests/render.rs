@@ -483,7 +483,7 @@ fn frame_statistics_arrive_without_waiting() {
     let device = r.gpu.device.clone();
     let mut enc = device.create_command_encoder(&Default::default());
     let s = settings();
-    r.encode(&mut enc, &View::TopDown, w, h, &s, &view, format, w)
+    r.encode(&mut enc, &View::TopDown, w, h, &s, &view, format, (w, h))
         .expect("encode");
     r.request_stats(&mut enc);
     r.gpu.queue.submit([enc.finish()]);

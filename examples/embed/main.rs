@@ -310,7 +310,7 @@ fn compare(
         let start = Instant::now();
         let mut enc = r.gpu.device.create_command_encoder(&Default::default());
         r.encode(
-            &mut enc, &view, a.size.0, a.size.1, &settings, &tv, COLOR, a.size.0,
+            &mut enc, &view, a.size.0, a.size.1, &settings, &tv, COLOR, a.size,
         )?;
         r.gpu.queue.submit([enc.finish()]);
         r.gpu.wait()?;

@@ -21,6 +21,8 @@ struct UiFrame {
     settings: Settings,
     output: egui::FullOutput,
     actions: Actions,
+    /// Where the view beside the panel ends (px from the window's left edge).
+    view_right_px: f32,
 }
 
 impl App {
@@ -55,6 +57,9 @@ impl App {
             return Ok(());
         };
         let target = surface.texture.create_view(&Default::default());
+        // The clouds are drawn beside the panel, not under it: the camera's view is what the
+        // user sees, centred on its heading, and the panel's quarter is not marched.
+        let tw = (ui.view_right_px.ceil() as u32).clamp(1, tw);
         let device = r.renderer.gpu.device.clone();
         let mut enc = device.create_command_encoder(&Default::default());
         let view = View::Perspective(r.pilot.camera());
@@ -78,7 +83,7 @@ impl App {
             &settings,
             &target,
             r.screen.config.format,
-            tw,
+            (tw, th),
         )?;
         r.renderer.request_stats(&mut enc);
         let extra = r.draw_ui(&mut enc, &target, ui.output);
@@ -125,16 +130,20 @@ impl Running {
         };
         let input = self.ui.state.take_egui_input(&self.screen.window);
         let mut actions = Actions::default();
+        let mut view_right = f32::MAX;
         let controls = &mut self.controls;
         let output = self.ui.ctx.run_ui(input, |ui| {
             actions = panel::panel(ui, controls);
+            view_right = ui.available_rect_before_wrap().max.x;
             panel::hud(ui, &hud);
         });
+        let view_right_px = view_right * output.pixels_per_point;
         let settings = self.controls.settings(self.valid_time, self.clock.frames);
         UiFrame {
             settings,
             output,
             actions,
+            view_right_px,
         }
     }
 

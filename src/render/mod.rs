@@ -333,7 +333,9 @@ impl Renderer {
 
     /// Record one frame into `enc`: the march at `width`×`height` (a subset of its pixels and
     /// the rest reprojected, when the settings ask for it and the view is a perspective), then
-    /// the present pass into `target` (any size: the cloud image is scaled to it). Times the
+    /// the present pass into the top-left `target_size` of `target` (any size: the cloud image
+    /// is scaled to it; the rest of a larger target is left black, e.g. under the window's
+    /// panel). Times the
     /// passes when it can. In steps: the light (the sky's tables, the light volume), the march
     /// (and the reprojection), the present (the exposure, then the picture).
     #[allow(clippy::too_many_arguments)]
@@ -346,11 +348,16 @@ impl Renderer {
         settings: &Settings,
         target: &wgpu::TextureView,
         target_format: wgpu::TextureFormat,
-        target_width: u32,
+        target_size: (u32, u32),
     ) -> Result<(), RenderError> {
         self.check_size(width, height)?;
-        if target_width == 0 {
-            return Err(RenderError::BadSize(target_width, height, self.max_side()));
+        let target_width = target_size.0;
+        if target_width == 0 || target_size.1 == 0 {
+            return Err(RenderError::BadSize(
+                target_width,
+                target_size.1,
+                self.max_side(),
+            ));
         }
         settings.validate()?;
         self.blend_at(settings);
@@ -382,7 +389,7 @@ impl Renderer {
         if enlarged {
             self.encode_resolve(enc);
         }
-        self.encode_present(enc, settings, pipeline, target, enlarged);
+        self.encode_present(enc, settings, pipeline, (target, target_size), enlarged);
         Ok(())
     }
 
@@ -541,7 +548,7 @@ impl Renderer {
         enc: &mut wgpu::CommandEncoder,
         settings: &Settings,
         pipeline: present::PipelineId,
-        target: &wgpu::TextureView,
+        (target, target_size): (&wgpu::TextureView, (u32, u32)),
         enlarged: bool,
     ) {
         let Some(t) = self.targets.as_ref() else {
@@ -568,7 +575,7 @@ impl Renderer {
             pipeline,
             present_bind,
             scene_bind,
-            target,
+            (target, target_size),
             timer.map(|q| q.render_writes()),
         );
         if let Some(q) = timer {
@@ -803,7 +810,7 @@ impl Renderer {
             settings,
             &color_view,
             HEADLESS_FORMAT,
-            width,
+            (width, height),
         )?;
         let (cloud_tex, cut_mask, subset) = {
             let t = self

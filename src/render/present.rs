@@ -178,7 +178,7 @@ impl PresentPass {
         pipeline: PipelineId,
         target_bind: &wgpu::BindGroup,
         scene_bind: &wgpu::BindGroup,
-        target: &wgpu::TextureView,
+        (target, size): (&wgpu::TextureView, (u32, u32)),
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) {
         let pipeline = &self.pipelines[pipeline.0].1;
@@ -198,6 +198,8 @@ impl PresentPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        // Only the picture's part of the target: the window's panel covers the rest.
+        pass.set_viewport(0.0, 0.0, size.0 as f32, size.1 as f32, 0.0, 1.0);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.device_bind, &[]);
         pass.set_bind_group(1, target_bind, &[]);
