@@ -13,7 +13,7 @@ use std::hash::{Hash, Hasher};
 
 use egui::epaint::{ClippedPrimitive, Primitive};
 
-use crate::render::shader;
+use crate::render::{pipeline, shader};
 
 /// A rectangle of the window in pixels: x0, y0, x1, y1 (x1, y1 exclusive).
 type PixelRect = [u32; 4];
@@ -136,24 +136,20 @@ impl Overlay {
             size_in_pixels: size,
             pixels_per_point: ppp,
         };
-        // The primitives to draw, and the rectangles to empty first (none: the whole layer).
-        let (jobs, empty): (Vec<ClippedPrimitive>, Option<Vec<PixelRect>>) = match redraw {
-            None => (prims, None),
+        // The primitives to draw, and the rectangles to empty first (all of it: the whole layer).
+        let (jobs, empty): (Vec<ClippedPrimitive>, Vec<PixelRect>) = match redraw {
+            None => (prims, vec![[0, 0, size[0], size[1]]]),
             Some(idx) => (
                 idx.iter().map(|&(i, _)| prims[i].clone()).collect(),
-                Some(idx.iter().map(|&(_, r)| r).collect()),
+                idx.iter().map(|&(_, r)| r).collect(),
             ),
         };
         let extra = self.egui.update_buffers(device, queue, enc, &jobs, &screen);
-        if empty.is_none() || !jobs.is_empty() {
-            let load = if empty.is_none() {
-                wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
-            } else {
-                wgpu::LoadOp::Load
-            };
-            let mut pass = begin(enc, "overlay layer", &layer.view, load).forget_lifetime();
+        if !empty.is_empty() {
+            let pass = pipeline::over_pass(enc, "overlay layer", &layer.view);
+            let mut pass = pass.forget_lifetime();
             pass.set_pipeline(&self.clear);
-            for r in empty.iter().flatten() {
+            for r in &empty {
                 if scissor(&mut pass, *r) {
                     pass.draw(0..3, 0..1);
                 }
@@ -164,7 +160,7 @@ impl Overlay {
             self.egui.free_texture(id);
         }
         {
-            let mut pass = begin(enc, "overlay", target, wgpu::LoadOp::Load);
+            let mut pass = pipeline::over_pass(enc, "overlay", target);
             pass.set_pipeline(&self.over);
             pass.set_bind_group(0, &layer.bind, &[]);
             for r in disjoint(fresh.iter().map(|h| h.0).collect()) {
@@ -224,31 +220,6 @@ impl Layer {
             held: Vec::new(),
         }
     }
-}
-
-/// A render pass onto `view` that stores what it draws.
-fn begin<'e>(
-    enc: &'e mut wgpu::CommandEncoder,
-    label: &str,
-    view: &wgpu::TextureView,
-    load: wgpu::LoadOp<wgpu::Color>,
-) -> wgpu::RenderPass<'e> {
-    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load,
-                store: wgpu::StoreOp::Store,
-            },
-        })],
-        depth_stencil_attachment: None,
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    })
 }
 
 /// Restrict the pass to `r`; false when it is empty (nothing to draw).
