@@ -3,7 +3,8 @@
 // stage's exposure and a filmic tone curve; the sRGB target encodes.
 
 // The march's cloud (premultiplied radiance and opacity); where the march is enlarged, its
-// picture resolved at its own size (the resolve stage, jitter.wgsl).
+// picture resolved and laid over its background at its own size (the resolve stage: linear
+// radiance as shown, before the exposure).
 @group(1) @binding(0) var cloud: texture_2d<f32>;
 // The background behind it and each pixel's distance in km (march.wgsl `out_scene`).
 @group(1) @binding(1) var scene: texture_2d<f32>;
@@ -31,37 +32,24 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));
-    var c: vec4<f32>;
     let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
-    var bg: vec3<f32>;
+    var lin: vec3<f32>;
     if (UPSAMPLE) {
-        // The window marches at a fraction of its size: the four march pixels around,
-        // bilinear, from the picture the resolve stage has already resolved. Not edge-aware:
-        // weighting each by its opacity and distance against the nearest one's kept the
-        // nearest pixel wherever they differed, which drew every cloud edge as 4-px steps and
-        // the far deck's rim on the haze line as 4-px blocks, and erred more than bilinear
-        // against the full march (docs/footprint.md, "The enlarged march, bilinear"). A 4×4
-        // footprint over the unresolved march here drew the picture of a resolve at four
-        // times the texture reads over every window pixel, about 17 ms of a 1280×720 frame
-        // on lavapipe (docs/performance.md, "The window's frame").
-        let q = px - 0.5;
-        let fr = q - floor(q);
-        let i0 = vec2<i32>(floor(q));
-        c = vec4<f32>(0.0);
-        bg = vec3<f32>(0.0);
-        for (var j = 0; j < 2; j++) {
-            for (var i = 0; i < 2; i++) {
-                let w = select(1.0 - fr.x, fr.x, i == 1) * select(1.0 - fr.y, fr.y, j == 1);
-                let at = clamp(i0 + vec2<i32>(i, j), vec2<i32>(0), dims - 1);
-                c += w * textureLoad(cloud, at, 0);
-                bg += w * textureLoad(scene, at, 0).rgb;
-            }
-        }
+        // The window marches at a fraction of its size: the resolve stage has already laid
+        // the march's cloud over its background there, so one bilinear read of that picture
+        // (the scene group's linear, clamp-to-edge sampler) is the four nearest march pixels
+        // as shown. Two textures read four times each, weights and composite here, cost
+        // about 12 ms of a 1280×720 frame on lavapipe and drew the same picture within
+        // 5/255 (docs/performance.md, "The enlarged march composited at its own size"). Not
+        // edge-aware: weighting each by its opacity and distance against the nearest one's
+        // drew every cloud edge as 4-px steps and erred more against the full march
+        // (docs/footprint.md, "The enlarged march, bilinear").
+        lin = textureSampleLevel(cloud, od_sampler, px / vec2<f32>(dims), 0.0).rgb;
     } else {
-        bg = textureLoad(scene, near_at, 0).rgb;
-        c = jitter_resolved(near_at, dims, resolve_weights(f.step_growth));
+        let bg = textureLoad(scene, near_at, 0).rgb;
+        let c = jitter_resolved(near_at, dims, resolve_weights(f.step_growth));
+        lin = bg * (1.0 - c.a) + c.rgb;
     }
-    let lin = bg * (1.0 - c.a) + c.rgb;
     var out = aces(lin * exposure.value);
     if (ENCODE_SRGB) {
         out = srgb_encode(out);

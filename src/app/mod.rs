@@ -280,7 +280,7 @@ impl App {
         controls.time_rate = self.opts.time_rate;
         if cpu {
             controls.status = format!(
-                "CPU adapter: marching at {:.0} % of the window's size",
+                "CPU adapter: marching at {:.0} % of the view's size (beside the panel)",
                 controls.render_scale * 100.0
             );
         }

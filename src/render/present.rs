@@ -1,7 +1,7 @@
 //! Present stage: a full-screen triangle (shaders/present.wgsl) that composites the cloud
 //! texture over the background the march found (sky, Sun, Moon, stars, ground), enlarging
-//! bilinearly where the march was smaller (from its picture resolved by render::resolve), and
-//! tone-maps into the target format.
+//! bilinearly where the march was smaller (one read of the picture render::resolve resolved and
+//! composited at the march's size), and tone-maps into the target format.
 
 use super::contract::{self, Binding, Resource};
 use super::gpu::Gpu;
@@ -30,7 +30,8 @@ pub fn bindings() -> Vec<Binding> {
 
 /// How the present stage reads the march: at the target's own size (the march's jitter
 /// resolved over 3×3 march pixels), or enlarged from a smaller march (the window's render
-/// scale) over the four nearest pixels of that march resolved at its own size (render::resolve).
+/// scale): one bilinear read of that march resolved and laid over its background at its own
+/// size (render::resolve).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Resample {
     Same,

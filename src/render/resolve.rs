@@ -1,7 +1,8 @@
 //! Resolve stage: where a march smaller than its target is enlarged (the window's render scale,
 //! `render --render-scale`), shaders/resolve.wgsl resolves the march's jitter at the march's
-//! own size, as the present stage does for a march at the target's size (shaders/jitter.wgsl);
-//! the present stage then enlarges that picture. It owns its pipeline; the textures it reads
+//! own size, as the present stage does for a march at the target's size (shaders/jitter.wgsl),
+//! and lays it over its background; the present stage then enlarges that picture with one
+//! bilinear read a target pixel. It owns its pipeline; the textures it reads
 //! and writes are the frame set's (render::targets).
 
 use super::contract::{self, Binding, Resource};

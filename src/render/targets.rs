@@ -26,7 +26,8 @@ pub(super) struct FrameSet {
     pub(super) enlarged: Option<Enlarged>,
 }
 
-/// A frame set enlarged into its target: its march resolved at its own size (render::resolve)
+/// A frame set enlarged into its target: its march resolved and composited at its own size
+/// (render::resolve: linear radiance as shown, before the exposure)
 /// and the present stage's bind group reading that picture instead of the march's.
 pub(super) struct Enlarged {
     /// Held for the bind groups.
