@@ -32,20 +32,21 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // march_scale: march pixels per target pixel (the window may march at a lower resolution).
     let px = in.pos.xy * f.march_scale;
     let dims = vec2<i32>(textureDimensions(cloud));
-    let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
     var lin: vec3<f32>;
     if (UPSAMPLE) {
         // The window marches at a fraction of its size: the resolve stage has already laid
         // the march's cloud over its background there, so one bilinear read of that picture
-        // (the scene group's linear, clamp-to-edge sampler) is the four nearest march pixels
-        // as shown. Two textures read four times each, weights and composite here, cost
-        // about 12 ms of a 1280×720 frame on lavapipe and drew the same picture within
-        // 5/255 (docs/performance.md, "The enlarged march composited at its own size"). Not
-        // edge-aware: weighting each by its opacity and distance against the nearest one's
-        // drew every cloud edge as 4-px steps and erred more against the full march
-        // (docs/footprint.md, "The enlarged march, bilinear").
+        // (scene.wgsl's linear, clamp-to-edge sampler, shared with the sky, the ground and
+        // the shadow volume) is the four nearest march pixels as shown. Two textures read
+        // four times each, weights and composite here, cost about 12 ms of a 1280×720 frame
+        // on lavapipe and drew the same picture within 5/255 (docs/performance.md, "The
+        // enlarged march composited at its own size"). Not edge-aware: weighting each by its
+        // opacity and distance against the nearest one's drew every cloud edge as 4-px steps
+        // and erred more against the full march (docs/footprint.md, "The enlarged march,
+        // bilinear").
         lin = textureSampleLevel(cloud, od_sampler, px / vec2<f32>(dims), 0.0).rgb;
     } else {
+        let near_at = clamp(vec2<i32>(floor(px)), vec2<i32>(0), dims - 1);
         let bg = textureLoad(scene, near_at, 0).rgb;
         let c = jitter_resolved(near_at, dims, resolve_weights(f.step_growth));
         lin = bg * (1.0 - c.a) + c.rgb;
