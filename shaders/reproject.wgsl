@@ -31,7 +31,8 @@ struct Reproject {
     lattice_y: u32,
     lattice_step: u32,          // and step (render::reproject::still_lattice)
     whole: u32,                 // 1: the still view began after a full march: every pixel is its own
-    _pad1: u32,
+    new_weight: f32,            // a still view's march this frame against its pixel's mean
+                                // (render::reproject::still_mean_weight)
     _pad2: u32,
 };
 
@@ -43,10 +44,6 @@ override STILL: bool = false;
 
 // Moved by less than this (px) since the last frame, a pixel keeps its history unclamped.
 const STILL_PX: f32 = 0.25;
-
-// The most marches of one pixel a still view averages: 16 take `fast` at rest (4×4 cells)
-// 256 frames, 17 s at the CPU window's 15 fps.
-const STILL_MEAN_MAX: u32 = 16u;
 
 // Fresh samples around a pixel (the moving view's bilinear footprint, the still view's
 // lattice): their range bounds the history kept (no ghosts) and their bilinear mean stands in
@@ -96,11 +93,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let cell = p / i32(n);
     let own = min(vec2<u32>(cell) * n + off, size - 1u);
     if (all(own == id.xy)) {
-        // Marched this frame: in a still view, into the mean of its marches so far.
+        // Marched this frame: in a still view, into the mean of its marches so far (weighed
+        // by render::reproject::still_mean_weight: the ¼ window at rest otherwise kept one
+        // march's jitter noise, docs/footprint.md, "A still view's marches averaged").
         var c = textureLoad(fresh_cloud, cell, 0);
         var s = textureLoad(fresh_scene, cell, 0);
         if (STILL) {
-            let w = still_weight(n);
+            let w = rp.new_weight;
             c = mix(textureLoad(hist_cloud, p, 0), c, w);
             s = vec4<f32>(mix(textureLoad(hist_scene, p, 0).rgb, s.rgb, w), s.a);
         }
@@ -214,23 +213,6 @@ fn own_march(q: vec2<u32>, n: u32) -> Px {
         return Px(textureLoad(fresh_cloud, cell, 0), textureLoad(fresh_scene, cell, 0));
     }
     return Px(textureLoad(hist_cloud, vec2<i32>(q), 0), textureLoad(hist_scene, vec2<i32>(q), 0));
-}
-
-// The weight of a still view's new march of its pixel against what the history holds for it:
-// 1 / m for its m-th march since the camera stopped (one each n² frames, in rank order), so
-// the history holds the mean of its marches at the frames' different jitters. A replaced
-// march kept the march's jitter noise (`fast`: the ¼ window at rest changed by 0.0049 a pixel
-// from one 16-frame cycle to the next, and never came closer to the full march than after its
-// first 16 frames: docs/footprint.md, "A still view's marches averaged"). The mean spans no
-// more than the age budget's marches, so where the scene's time runs it does not lag it (×600:
-// every march replaced).
-fn still_weight(n: u32) -> f32 {
-    let nn = n * n;
-    let k = rp.still - 1u;
-    // After a full march (rp.whole) every pixel but rank 0's had one march more.
-    let m = k / nn + 1u + select(0u, 1u, rp.whole != 0u && k % nn != 0u);
-    let most = clamp(rp.max_age / nn, 1u, STILL_MEAN_MAX);
-    return 1.0 / f32(min(m, most));
 }
 
 // A still view (the camera has not moved for k + 1 frames, rp.still): a pixel marched in the

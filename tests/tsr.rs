@@ -48,13 +48,18 @@ fn linear(img: &image::RgbaImage) -> Linear {
     img.pixels().map(|p| [d(p[0]), d(p[1]), d(p[2])]).collect()
 }
 
-fn rmse(a: &Linear, b: &Linear) -> f64 {
+/// The mean over every pixel's channels of `g` of their difference.
+fn channel_mean(a: &Linear, b: &Linear, g: impl Fn(f64) -> f64) -> f64 {
     let s: f64 = a
         .iter()
         .zip(b)
-        .map(|(x, y)| (0..3).map(|i| ((x[i] - y[i]) as f64).powi(2)).sum::<f64>())
+        .map(|(x, y)| (0..3).map(|i| g((x[i] - y[i]) as f64)).sum::<f64>())
         .sum();
-    (s / (3 * a.len()) as f64).sqrt()
+    s / (3 * a.len()) as f64
+}
+
+fn rmse(a: &Linear, b: &Linear) -> f64 {
+    channel_mean(a, b, |d| d * d).sqrt()
 }
 
 fn luminance(p: &[f32; 3]) -> f32 {
@@ -207,7 +212,7 @@ fn a_still_window_converges_to_the_full_march() {
         "16 frames of 4×4 cells: RMSE {:.4}",
         four[1]
     );
-    // After 64 each pixel holds the mean of four marches (reproject.wgsl `still_weight`):
+    // After 64 each pixel holds the mean of four marches (render::reproject::still_mean_weight):
     // 0.0071 against 0.0094 (lavapipe); each march replacing the last, 0.0093.
     assert!(
         four[2] < 0.85 * four[1],
@@ -246,16 +251,11 @@ fn a_still_window_converges_to_the_full_march() {
 
 /// Mean absolute change per channel between two pictures.
 fn change(a: &Linear, b: &Linear) -> f64 {
-    let s: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (0..3).map(|i| (x[i] - y[i]).abs() as f64).sum::<f64>())
-        .sum();
-    s / (3 * a.len()) as f64
+    channel_mean(a, b, f64::abs)
 }
 
 /// A still window keeps marching a pixel of each cell a frame; each new march of a pixel goes
-/// into the mean of its marches (reproject.wgsl `still_weight`) rather than replacing the one
+/// into the mean of its marches (render::reproject::still_mean_weight) rather than replacing the one
 /// before, at another frame's jitter. So the enlarged ¼ window at rest comes closer to the full
 /// march after its first 16 frames, and settles: from one frame to the next it changes less
 /// and less (lavapipe: 0.0127 after 16 frames, 0.0102 after 80; the change a frame 0.00037 at
@@ -284,9 +284,10 @@ fn a_still_window_settles_on_the_mean_of_its_marches() {
         "still ¼ window: RMSE after 16 frames {:.4}, after 80 {:.4}; change a frame at 32 {early:.5}, at 80 {late:.5}",
         err[0], err[1]
     );
+    // Replacing came 0.0120 after 80 against 0.0127: a tenth closer is the mean's.
     assert!(
-        err[1] < err[0],
-        "80 still frames ({:.4}) no closer than 16 ({:.4})",
+        err[1] < 0.9 * err[0],
+        "80 still frames ({:.4}) not much closer than 16 ({:.4})",
         err[1],
         err[0]
     );

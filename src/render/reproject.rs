@@ -43,7 +43,9 @@ crate::gpu_struct! {
         pub lattice_step: u32,
         /// 1: the still view began after a full march young enough: every pixel holds its own.
         pub whole: u32,
-        pub _pad1: u32,
+        /// A still view's weight for this frame's march of a pixel against the mean its history
+        /// holds ([`still_mean_weight`]).
+        pub new_weight: f32,
         pub _pad2: u32,
     }
 }
@@ -242,6 +244,7 @@ pub fn params(
     let (lattice_step, [lattice_x, lattice_y]) = still_lattice(n, still.saturating_sub(1), age);
     let (a, b) = (last.camera.basis(), now.basis());
     let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32];
+    let whole = whole && still > 0 && still < age;
     ReprojectParams {
         prev_fwd: v(a.forward),
         prev_tan_half_fov: (last.camera.fov_deg.to_radians() * 0.5).tan() as f32,
@@ -256,9 +259,29 @@ pub fn params(
         lattice_step,
         lattice_x,
         lattice_y,
-        whole: u32::from(whole && still > 0 && still < age),
+        whole: u32::from(whole),
+        new_weight: still_mean_weight(n, still, age, whole),
         ..ReprojectParams::default()
     }
+}
+
+/// The most marches of one pixel a still view averages: `fast` at rest (4×4 cells) takes 256
+/// frames to hold 16, 17 s at the CPU window's 15 fps.
+pub const STILL_MEAN_MAX: u32 = 16;
+
+/// A still view's weight for the march of a pixel this frame against what its history holds:
+/// 1 / m for its m-th march since the camera stopped (one each n² frames, in rank order; after
+/// a full march every pixel but rank 0's had one more), so the history holds the mean of its
+/// marches at the frames' different jitters. Replaced instead, a still window kept one
+/// march's jitter noise and came no closer to the full march after its first n² frames
+/// (docs/footprint.md, "A still view's marches averaged"). The mean spans no more marches than
+/// `max_age` frames hold, so where the scene's time runs it does not lag the weather.
+pub fn still_mean_weight(n: u32, still: u32, max_age: u32, whole: bool) -> f32 {
+    let nn = n.max(1) * n.max(1);
+    let k = still.saturating_sub(1);
+    let m = k / nn + 1 + u32::from(whole && !k.is_multiple_of(nn));
+    let most = (max_age / nn).clamp(1, STILL_MEAN_MAX);
+    1.0 / m.min(most) as f32
 }
 
 /// The stage's pipelines and its device-lifetime bindings.
@@ -376,6 +399,24 @@ impl ReprojectPass {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_still_view_averages_its_marches_within_the_age_budget() {
+        let paused = max_age(0.0);
+        // Each pixel's first march replaces the moving view's history; the m-th weighs 1/m.
+        assert_eq!(still_mean_weight(4, 1, paused, false), 1.0);
+        assert_eq!(still_mean_weight(4, 16, paused, false), 1.0);
+        assert_eq!(still_mean_weight(4, 17, paused, false), 0.5);
+        assert_eq!(still_mean_weight(4, 49, paused, false), 0.25);
+        assert_eq!(still_mean_weight(4, 100_000, paused, false), 1.0 / 16.0);
+        // After a full march every pixel but rank 0's holds one march more.
+        assert_eq!(still_mean_weight(4, 2, paused, true), 0.5);
+        assert_eq!(still_mean_weight(4, 17, paused, true), 0.5);
+        // ×600 at 60 ms a frame (36 s of scene time a frame): replaced, as before the mean.
+        assert_eq!(still_mean_weight(4, 1000, max_age(36.0), false), 1.0);
+        // ×60 (3.6 s a frame): no more than the 166 frames of the age budget, 10 marches.
+        assert_eq!(still_mean_weight(4, 1000, max_age(3.6), false), 0.1);
+    }
 
     #[test]
     fn every_pixel_of_a_cell_is_marched_once_in_n_squared_frames() {
