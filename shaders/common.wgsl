@@ -70,10 +70,10 @@ struct Frame {
     blend_ahead_s: f32,         // seconds to the later step (sampled downwind)
     subset_offset: vec2<f32>,   // the pixel of each subset cell marched this frame (render::reproject)
     subset_n: f32,              // subset cell side (px): 1 marches every pixel
-    _pad1: f32,
+    sample_dx: f32,             // where in its pixel the march aims, x (render::reproject::still_sample_offset)
     streak_dir: vec4<f32>,      // mean wind direction (east, north): high in xy, middle in zw (streaks, anvils)
     region_origin: vec3<f32>,   // the region's centre at sea level (ECEF m): streaks and cumulus cells measured from it
-    _pad2: f32,
+    sample_dy: f32,             // … and y
     cell_drift: vec4<f32>,      // per layer, the drift (east, north m) mod the cells' tile: low xy, middle zw
     cell_drift_high: vec4<f32>, // the high layer's in xy
     region_east: vec3<f32>,     // east at the region's centre (unit ECEF): the cells' plane

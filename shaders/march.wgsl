@@ -782,6 +782,13 @@ fn pixel_jitter(px: vec2<f32>) -> f32 {
     return fract(52.9829189 * fract(dot(q, vec2<f32>(0.06711056, 0.00583715))));
 }
 
+// Where the march aims in pixel `pix`: its centre, or in a still view's later marches of it the
+// frame's point of the pixel (render::reproject::still_sample_offset), so the mean of its
+// marches covers the pixel, not its centre alone.
+fn ray_point(pix: vec2<u32>) -> vec2<f32> {
+    return vec2<f32>(pix) + 0.5 + vec2<f32>(f.sample_dx, f.sample_dy);
+}
+
 // The reach limit of the pixel `pix` (`far_m`).
 fn set_far(pix: vec2<u32>) {
     let full = vec2<u32>(f.out_size);
@@ -809,7 +816,7 @@ fn main(
     // One invocation per subset cell: the cell's pixel this frame (every pixel when n is 1).
     // Every pixel with its first ray; the pixels that take more are left for `rework`.
     let marched = all(id.xy < subset_cells());
-    let px = vec2<f32>(pixel_of(id.xy)) + 0.5;
+    let px = ray_point(pixel_of(id.xy));
     var s = Shaded(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), false, vec2<f32>(-1.0), 1.0);
     if (marched) {
         local_count[C_RAYS] = 1u;
@@ -864,7 +871,7 @@ fn rework(
     }
     let cell = vec2<u32>(en.cell & 0xffffu, en.cell >> 16u);
     let pix = pixel_of(cell);
-    let px = vec2<f32>(pix) + 0.5;
+    let px = ray_point(pix);
     if (k < en.rays) {
         set_far(pix);
         let o = extra_ray(px, pixel_jitter(px), k, en, shown_at());

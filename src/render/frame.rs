@@ -119,7 +119,9 @@ crate::gpu_struct! {
         pub subset_offset: [f32; 2],
         /// Side of the subset cell (px): 1 marches every pixel.
         pub subset_n: f32,
-        pub _pad1: f32,
+        /// Where in its pixel this frame's march aims, x (pixels from the centre): a still
+        /// view's later marches of a pixel cover it ([`super::reproject::still_sample_offset`]).
+        pub sample_dx: f32,
         /// The layers' region-mean wind direction (east, north): the high layer's in x, y, the
         /// middle's in z, w; zero in calm air (< 1 m/s). Cirrus is streaked along it and a
         /// cumulonimbus leans downwind along the high layer's.
@@ -127,7 +129,8 @@ crate::gpu_struct! {
         /// The region's centre on the sea-level sphere (ECEF m): where the streaked noise and
         /// the cumulus cells are measured from (a frame constant, not worked out per sample).
         pub region_origin: [f32; 3],
-        pub _pad2: f32,
+        /// … and y (down).
+        pub sample_dy: f32,
         /// Per layer, the drift (east, north m) modulo the cumulus cells' tile
         /// (render::cells::PERIOD_M): low in x, y, middle in z, w of the first, high in x, y
         /// of the second. Not the ECEF drift above, whose components wrap by the noise's

@@ -269,19 +269,60 @@ pub fn params(
 /// frames to hold 16, 17 s at the CPU window's 15 fps.
 pub const STILL_MEAN_MAX: u32 = 16;
 
+/// Which march of its pixel since the camera stopped this frame's is, from 1: one each n²
+/// frames in the subset's rank order; after a full march every pixel but rank 0's had one more.
+fn still_march(n: u32, still: u32, whole: bool) -> u32 {
+    let nn = n.max(1) * n.max(1);
+    let k = still.saturating_sub(1);
+    k / nn + 1 + u32::from(whole && !k.is_multiple_of(nn))
+}
+
+/// The most marches of one pixel a still view's mean spans: [`STILL_MEAN_MAX`], and no more
+/// than `max_age` frames hold, so where the scene's time runs it does not lag the weather.
+fn still_mean_len(n: u32, max_age: u32) -> u32 {
+    (max_age / (n.max(1) * n.max(1))).clamp(1, STILL_MEAN_MAX)
+}
+
 /// A still view's weight for the march of a pixel this frame against what its history holds:
-/// 1 / m for its m-th march since the camera stopped (one each n² frames, in rank order; after
-/// a full march every pixel but rank 0's had one more), so the history holds the mean of its
+/// 1 / m for its m-th march since the camera stopped, so the history holds the mean of its
 /// marches at the frames' different jitters. Replaced instead, a still window kept one
 /// march's jitter noise and came no closer to the full march after its first n² frames
 /// (docs/footprint.md, "A still view's marches averaged"). The mean spans no more marches than
 /// `max_age` frames hold, so where the scene's time runs it does not lag the weather.
 pub fn still_mean_weight(n: u32, still: u32, max_age: u32, whole: bool) -> f32 {
-    let nn = n.max(1) * n.max(1);
-    let k = still.saturating_sub(1);
-    let m = k / nn + 1 + u32::from(whole && !k.is_multiple_of(nn));
-    let most = (max_age / nn).clamp(1, STILL_MEAN_MAX);
-    1.0 / m.min(most) as f32
+    1.0 / still_march(n, still, whole).min(still_mean_len(n, max_age)) as f32
+}
+
+/// How far across its pixel a still view's marches of it spread ([`still_sample_offset`]):
+/// the central half. The window's bilinear enlargement already spreads each march pixel over
+/// its neighbours'; marches over the whole pixel blurred twice what the enlargement averages
+/// (the made-up deck's ¼ window 0.0118 from the full march after 80 still frames, against
+/// 0.0108 over the central half and 0.0102 at the centre alone; docs/footprint.md, "A still
+/// view's marches cover their pixels").
+pub const STILL_SAMPLE_SPREAD: f32 = 0.5;
+
+/// Where in its pixel a still view's march aims this frame (march pixels from the centre, y
+/// down): the m-th march of a pixel at the m-th point of a 16-point Halton (2, 3) set over
+/// the pixel's central [`STILL_SAMPLE_SPREAD`], shifted so that its first point, the one march
+/// a pixel has until the view has stood n² frames, is the centre. So the mean of a pixel's
+/// marches ([`still_mean_weight`]) covers the several view pixels an enlarged march pixel
+/// stands for, not the point at its centre alone. The centre wherever a march replaces the
+/// last (the mean spans one), lest the picture swim.
+pub fn still_sample_offset(n: u32, still: u32, max_age: u32, whole: bool) -> [f32; 2] {
+    if still == 0 || still_mean_len(n, max_age) < 2 {
+        return [0.0, 0.0];
+    }
+    let i = (still_march(n, still, whole) - 1) % STILL_MEAN_MAX;
+    let shifted = |base: u32| {
+        let (mut x, mut f, mut j) = (0.0f32, 1.0f32, i);
+        while j > 0 {
+            f /= base as f32;
+            x += f * (j % base) as f32;
+            j /= base;
+        }
+        STILL_SAMPLE_SPREAD * ((x + 0.5).fract() - 0.5)
+    };
+    [shifted(2), shifted(3)]
 }
 
 /// The stage's pipelines and its device-lifetime bindings.
@@ -416,6 +457,37 @@ mod tests {
         assert_eq!(still_mean_weight(4, 1000, max_age(36.0), false), 1.0);
         // ×60 (3.6 s a frame): no more than the 166 frames of the age budget, 10 marches.
         assert_eq!(still_mean_weight(4, 1000, max_age(3.6), false), 0.1);
+    }
+
+    #[test]
+    fn a_still_views_marches_cover_their_pixel() {
+        let paused = max_age(0.0);
+        // Moving, or a pixel's first march since the camera stopped: the centre.
+        assert_eq!(still_sample_offset(4, 0, paused, false), [0.0, 0.0]);
+        for still in 1..=16 {
+            assert_eq!(still_sample_offset(4, still, paused, false), [0.0, 0.0]);
+        }
+        // Where each march replaces the last (×600): the centre, lest the picture swim.
+        assert_eq!(still_sample_offset(4, 40, max_age(36.0), false), [0.0, 0.0]);
+        // The 16 marches of a pixel: 16 distinct points in its central half, three to five in
+        // each quarter of it, their mean near its centre.
+        let pts: Vec<[f32; 2]> = (0..16)
+            .map(|m| still_sample_offset(4, 16 * m + 5, paused, false))
+            .collect();
+        let mut quarters = [0; 4];
+        for (i, p) in pts.iter().enumerate() {
+            let h = 0.5 * STILL_SAMPLE_SPREAD;
+            assert!(p.iter().all(|v| (-h..h).contains(v)), "{p:?}");
+            assert!(pts[..i].iter().all(|q| q != p), "{p:?} twice");
+            quarters[usize::from(p[0] >= 0.0) + 2 * usize::from(p[1] >= 0.0)] += 1;
+        }
+        assert!(quarters.iter().all(|q| (3..=5).contains(q)), "{quarters:?}");
+        let mean = pts
+            .iter()
+            .fold([0.0; 2], |a, p| [a[0] + p[0] / 16.0, a[1] + p[1] / 16.0]);
+        assert!(mean.iter().all(|v| v.abs() < 0.04), "{mean:?}");
+        // The 17th begins the set again.
+        assert_eq!(still_sample_offset(4, 16 * 16 + 5, paused, false), pts[0]);
     }
 
     #[test]

@@ -342,6 +342,14 @@ impl Renderer {
                 let [ox, oy] = reproject::subset_offset(h.n, rank);
                 uniforms.subset_n = h.n as f32;
                 uniforms.subset_offset = [ox as f32, oy as f32];
+                // An enlarged march's pixel stands for several of the view's: a still view's
+                // later marches of it spread over it. At the view's own size the march keeps
+                // its pixel's centre, as the full march does.
+                let q = &p.params;
+                if q.valid != 0 && uniforms.march_scale < super::frame::ENLARGED_BELOW {
+                    [uniforms.sample_dx, uniforms.sample_dy] =
+                        reproject::still_sample_offset(h.n, q.still, q.max_age, q.whole != 0);
+                }
                 // No grazing rays in a subset march at the target's size: its workgroup's
                 // neighbours are n pixels apart and differ more often, so nearly every grazing
                 // pixel took them (the East Asia cruise at `balanced`: a third more steps and
