@@ -254,6 +254,18 @@ fn change(a: &Linear, b: &Linear) -> f64 {
     channel_mean(a, b, f64::abs)
 }
 
+/// A still picture's RMSE after `later`'s frames under 0.9 of its RMSE after `earlier`'s.
+fn assert_a_tenth_closer(earlier: (f64, u32), later: (f64, u32)) {
+    assert!(
+        later.0 < 0.9 * earlier.0,
+        "{} still frames ({:.4}) not much closer than {} ({:.4})",
+        later.1,
+        later.0,
+        earlier.1,
+        earlier.0
+    );
+}
+
 /// A still window keeps marching a pixel of each cell a frame; each new march of a pixel goes
 /// into the mean of its marches (render::reproject::still_mean_weight) rather than replacing the one
 /// before, at another frame's jitter. So the enlarged ¼ window at rest comes closer to the full
@@ -286,12 +298,7 @@ fn a_still_window_settles_on_the_mean_of_its_marches() {
         err[0], err[1]
     );
     // Replacing came 0.0120 after 80 against 0.0127: a tenth closer is the mean's.
-    assert!(
-        err[1] < 0.9 * err[0],
-        "80 still frames ({:.4}) not much closer than 16 ({:.4})",
-        err[1],
-        err[0]
-    );
+    assert_a_tenth_closer((err[0], 16), (err[1], 80));
     assert!(
         late < 0.6 * early,
         "a still window changes as much at frame 80 ({late:.5}) as at 32 ({early:.5})"
@@ -340,12 +347,7 @@ fn a_still_windows_marches_cover_their_pixels() {
         e[0], e[1]
     );
     // At the centre alone 64 frames were 0.93 of 16's: the spread marches take it under 0.9.
-    assert!(
-        e[1] < 0.9 * e[0],
-        "64 still frames ({:.4}) not much closer than 16 ({:.4})",
-        e[1],
-        e[0]
-    );
+    assert_a_tenth_closer((e[0], 16), (e[1], 64));
 }
 
 /// What a flight at the pilot's default speed shows, frame by frame: RMSE against the full
