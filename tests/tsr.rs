@@ -314,20 +314,14 @@ fn a_still_window_settles_on_the_mean_of_its_marches() {
 #[test]
 fn a_still_windows_marches_cover_their_pixels() {
     let dir = tempfile::tempdir().expect("a temporary folder");
-    let png = dir.path().join("ea.png");
-    let grib = common::sample("gfs-2011011012-f120-2p5.grib2");
-    let o = common::stratus(&[
-        "ingest",
-        grib.to_str().expect("a UTF-8 path"),
-        "--region",
+    let path = common::ingest_sample(
+        dir.path(),
+        "gfs-2011011012-f120-2p5.grib2",
+        "ea",
         "0,55,39,105",
-        "--size",
         "1300x1100",
-        "--out",
-        png.to_str().expect("a UTF-8 path"),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let map = stratus::scene::Scene::open(&dir.path().join("ea.json"))
+    );
+    let map = stratus::scene::Scene::open(&path)
         .map_at(None)
         .expect("the East Asia map");
     let mut base = fast_settings();

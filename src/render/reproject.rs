@@ -287,8 +287,8 @@ fn still_mean_len(n: u32, max_age: u32) -> u32 {
 /// 1 / m for its m-th march since the camera stopped, so the history holds the mean of its
 /// marches at the frames' different jitters. Replaced instead, a still window kept one
 /// march's jitter noise and came no closer to the full march after its first n² frames
-/// (docs/footprint.md, "A still view's marches averaged"). The mean spans no more marches than
-/// `max_age` frames hold, so where the scene's time runs it does not lag the weather.
+/// (docs/footprint.md, "A still view's marches averaged"). Over [`still_mean_len`] marches at
+/// most.
 pub fn still_mean_weight(n: u32, still: u32, max_age: u32, whole: bool) -> f32 {
     1.0 / still_march(n, still, whole).min(still_mean_len(n, max_age)) as f32
 }
@@ -309,7 +309,8 @@ pub const STILL_SAMPLE_SPREAD: f32 = 0.5;
 /// stands for, not the point at its centre alone. The centre wherever a march replaces the
 /// last (the mean spans one), lest the picture swim.
 pub fn still_sample_offset(n: u32, still: u32, max_age: u32, whole: bool) -> [f32; 2] {
-    if still == 0 || still_mean_len(n, max_age) < 2 {
+    // A moving view (`still` 0) and each pixel's first march are point 0, the centre.
+    if still_mean_len(n, max_age) < 2 {
         return [0.0, 0.0];
     }
     let i = (still_march(n, still, whole) - 1) % STILL_MEAN_MAX;

@@ -345,8 +345,9 @@ impl Renderer {
                 // An enlarged march's pixel stands for several of the view's: a still view's
                 // later marches of it spread over it. At the view's own size the march keeps
                 // its pixel's centre, as the full march does.
+                // (A params without history is a moving view's: still 0, the centre.)
                 let q = &p.params;
-                if q.valid != 0 && uniforms.march_scale < super::frame::ENLARGED_BELOW {
+                if uniforms.march_scale < super::frame::ENLARGED_BELOW {
                     [uniforms.sample_dx, uniforms.sample_dy] =
                         reproject::still_sample_offset(h.n, q.still, q.max_age, q.whole != 0);
                 }

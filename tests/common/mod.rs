@@ -126,7 +126,19 @@ pub fn synthetic_map(dir: &Path) -> PathBuf {
 /// Ingest the real GFS sample (`data-samples/gfs/`, all layers) over `region` at `size` into
 /// `dir/NAME.png`, returning the sidecar.
 pub fn real_map(dir: &Path, name: &str, region: &str, size: &str) -> PathBuf {
-    let file = sample("gfs/gfs.t12z.pgrbf120.2p5deg.grib2");
+    ingest_sample(
+        dir,
+        "gfs/gfs.t12z.pgrbf120.2p5deg.grib2",
+        name,
+        region,
+        size,
+    )
+}
+
+/// Ingest `data-samples/FILE` (all layers) over `region` at `size` into `dir/NAME.png`,
+/// returning the sidecar.
+pub fn ingest_sample(dir: &Path, file: &str, name: &str, region: &str, size: &str) -> PathBuf {
+    let file = sample(file);
     let png = dir.join(format!("{name}.png"));
     let o = stratus(&[
         "ingest",
