@@ -147,8 +147,17 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Time frames whose Sun moves 15 minutes each (wall time), so each makes the sky-view table
-/// again and a slice of the light volume.
+/// The settings of frames in a sequence, as the window makes them: the exposure adapting over
+/// frames. A single picture (exposure at once, no reprojection) makes its light whole for its
+/// own Sun (render::shadow `require_exact`); a window's frame whose Sun moved makes a slice.
+pub fn sequence_settings(s: &Settings) -> Settings {
+    let mut s = s.clone();
+    s.exposure_rate = crate::app::panel::WINDOW_ADAPTATION;
+    s
+}
+
+/// Time frames of a sequence whose Sun moves 15 minutes each (wall time), so each makes the
+/// sky-view table again and a slice of the light volume.
 fn timed_moving(
     r: &mut Renderer,
     view: &View,

@@ -285,6 +285,31 @@ fn a_cloud_shadow_falls_where_geometry_puts_it() {
     assert!(err <= 0.02 * w as f64);
 }
 
+/// `stratus bench`'s "Sun moving" row times the window's frames: each a slice of the new
+/// volume, not a whole one (which a single picture makes, and which the row timed from
+/// def727e until the twenty-fifth session of issue 30: 300–400 ms a frame more).
+#[test]
+fn the_benchs_moving_sun_frames_make_the_light_a_slice_a_frame() {
+    let map = made_up(|la, lo| {
+        if (la - 45.0).abs() < 0.1 && (lo - 10.0).abs() < 0.1 {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let view = View::Perspective(Camera::new(45.0, 10.0, 120_000.0, 0.0, -90.0));
+    let mut s = stratus::bench::sequence_settings(&sun_east_settings());
+    s.sun_override = None;
+    let mut r = Renderer::new(Gpu::new(None).expect("a wgpu adapter"), &map);
+    r.render(&view, 64, 64, &s).expect("a frame");
+    let (made, _) = r.light_builds();
+    for k in 1..stratus::render::shadow::SLICES {
+        s.time += chrono::Duration::minutes(15);
+        r.render(&view, 64, 64, &s).expect("a frame");
+        assert_eq!(r.light_builds().0, made, "frame {k} made a whole volume");
+    }
+}
+
 #[test]
 fn a_moving_sun_remakes_the_light_over_frames_and_shows_it_whole() {
     // The round cloud of the shadow test, seen from 120 km; the Sun then sinks from 45° to 30°.

@@ -212,8 +212,9 @@ impl MarchPass {
                 address_mode_w: mode,
                 mag_filter: wgpu::FilterMode::Linear,
                 min_filter: wgpu::FilterMode::Linear,
-                // The noise statistics are read at the level of a sample's footprint.
-                mipmap_filter: wgpu::MipmapFilterMode::Linear,
+                // The noise statistics are read at the one level nearest a sample's
+                // footprint (cloud.wgsl `footprint_lod`).
+                mipmap_filter: wgpu::MipmapFilterMode::Nearest,
                 ..Default::default()
             })
         };
