@@ -166,7 +166,7 @@ fn timed_moving(
     s: &Settings,
     repeats: usize,
 ) -> Result<(Output, f64, &'static str), RenderError> {
-    let mut s = s.clone();
+    let mut s = sequence_settings(s);
     let mut out = r.render(view, w, h, &s)?;
     let mut times = Vec::new();
     for _ in 0..repeats {
