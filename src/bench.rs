@@ -157,8 +157,9 @@ pub fn sequence_settings(s: &Settings) -> Settings {
 }
 
 /// Time frames of a sequence whose Sun moves 15 minutes each (wall time), so each makes the
-/// sky-view table again and a slice of the light volume.
-fn timed_moving(
+/// sky-view table again and a slice of the light volume: the "Sun moving" row. `s` is the
+/// row's single-picture settings; the frames are made with `sequence_settings`.
+pub fn timed_moving(
     r: &mut Renderer,
     view: &View,
     w: u32,
