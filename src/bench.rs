@@ -150,7 +150,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// The settings of frames in a sequence, as the window makes them: the exposure adapting over
 /// frames. A single picture (exposure at once, no reprojection) makes its light whole for its
 /// own Sun (render::shadow `require_exact`); a window's frame whose Sun moved makes a slice.
-pub fn sequence_settings(s: &Settings) -> Settings {
+fn sequence_settings(s: &Settings) -> Settings {
     let mut s = s.clone();
     s.exposure_rate = crate::app::panel::WINDOW_ADAPTATION;
     s
