@@ -77,9 +77,9 @@ struct Frame {
     cell_drift: vec4<f32>,      // per layer, the drift (east, north m) mod the cells' tile: low xy, middle zw
     cell_drift_high: vec4<f32>, // the high layer's in xy
     region_east: vec3<f32>,     // east at the region's centre (unit ECEF): the cells' plane
-    _pad3: f32,
+    graze_apart: f32,           // how far a grazing pixel stands out to take more rays (march.wgsl)
     region_north_dir: vec3<f32>, // north there
-    _pad4: f32,
+    graze_column: f32,          // … and how much a column neighbour's own distance counts beside the bend
 };
 
 // The full-column light's volume (render::scene::ShadowParams): what the shadow stage made and

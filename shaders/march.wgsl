@@ -518,22 +518,26 @@ fn terrain_share(px: vec2<f32>, centre_meets: bool) -> f32 {
     if (sh.terrain_on == 0u) {
         return 1.0;
     }
+    // Where the centre meets the terrain every probe is above it, and so above the terrain as
+    // far as the centre was (`terrain_clear_to`): marched from there, a probe meets the rock
+    // in a few steps, not the centre's whole way.
+    let past = select(0.0, terrain_clear_to, centre_meets);
     var lo = 0.0;
     var hi = 1.0;
     if (centre_meets) {
-        if (meets_terrain(persp_dir(px - vec2<f32>(0.0, 0.5)))) {
+        if (meets_terrain(persp_dir(px - vec2<f32>(0.0, 0.5)), past)) {
             return 1.0;
         }
         hi = 0.5;
     } else {
-        if (!meets_terrain(persp_dir(px + vec2<f32>(0.0, 0.5)))) {
+        if (!meets_terrain(persp_dir(px + vec2<f32>(0.0, 0.5)), past)) {
             return 1.0;
         }
         lo = 0.5;
     }
     for (var k = 0; k < 2; k++) {
         let m = 0.5 * (lo + hi);
-        if (meets_terrain(persp_dir(px + vec2<f32>(0.0, m - 0.5)))) {
+        if (meets_terrain(persp_dir(px + vec2<f32>(0.0, m - 0.5)), past)) {
             hi = m;
         } else {
             lo = m;
@@ -542,15 +546,12 @@ fn terrain_share(px: vec2<f32>, centre_meets: bool) -> f32 {
     return 0.5 * (lo + hi);
 }
 
-// A grazing pixel (frame.wgsl `grazing`) whose picture differs from a neighbour's by more than
-// `GRAZE_APART` on screen (after the tone curve, 0..1) takes `GRAZE_EXTRA` more rays down its
-// height (`needs_grazing_rays`, `extra_ray`): a far deck's top seen edge-on is a line thinner
-// than a pixel, which one ray hits or misses as the step's jitter picks, a dashed line along the
-// row. At 0.04 the
-// bench's inside-layer view is at half its first error for the fewest extra steps
-// (docs/footprint.md, "Grazing rays where the picture asks").
+// A grazing pixel (frame.wgsl `grazing`) whose picture stands out from its neighbours' on
+// screen (`differs_from_neighbours`, by the preset's `graze_apart`) takes `GRAZE_EXTRA` more
+// rays down its height (`needs_grazing_rays`, `extra_ray`): a far deck's top seen edge-on is a
+// line thinner than a pixel, which one ray hits or misses as the step's jitter picks, a dashed
+// line along the row.
 const GRAZE_EXTRA: u32 = 4u;
-const GRAZE_APART: f32 = 0.04;
 
 // What a pixel's first ray shows: its cloud (premultiplied, opacity), what lies behind it
 // (`out_scene`: radiance, distance) and the picture on screen (`seen`). Where the Earth's limb or
@@ -726,26 +727,41 @@ fn reworked(en: ReworkEntry, first: u32) -> Shaded {
 // made it).
 var<workgroup> wg_seen: array<vec4<f32>, 64>;
 
-// Whether the pixel `li` of the 8×8 workgroup differs on screen from a one-ray neighbour in
-// its row or column by more than `GRAZE_APART`.
+// Whether the pixel `li` of the 8×8 workgroup stands out on screen (after the tone curve, 0..1)
+// from its one-ray neighbours by more than `f.graze_apart`: from either neighbour in its row,
+// or down its column from their mean (with one of them, half its distance to it), or, as far
+// as `f.graze_column` says, from either neighbour in its column. A far deck's edge crossing
+// the row is a line thinner than the pixel: the columns that hit it differ from those that
+// missed it along the row, and it stands out from both sides down the column. The horizon's
+// haze is a steep gradient down the column, which the centre ray already shows as its mean.
 fn differs_from_neighbours(li: u32, seen: vec3<f32>) -> bool {
     var most = 0.0;
-    let x = li & 7u;
-    let y = li >> 3u;
-    for (var k = 0u; k < 4u; k++) {
-        let dx = select(select(0i, 1i, k == 1u), -1i, k == 0u);
-        let dy = select(select(0i, 1i, k == 3u), -1i, k == 2u);
-        let nx = i32(x) + dx;
-        let ny = i32(y) + dy;
+    let x = i32(li & 7u);
+    let y = i32(li >> 3u);
+    var sum = vec3<f32>(0.0);
+    var n = 0.0;
+    for (var k = 0; k < 4; k++) {
+        let side = select(-1, 1, (k & 1) == 1);
+        let in_row = k < 2;
+        let nx = x + select(0, side, in_row);
+        let ny = y + select(side, 0, in_row);
         if (nx >= 0 && nx < 8 && ny >= 0 && ny < 8) {
             let o = wg_seen[u32(ny * 8 + nx)];
             if (o.w > 0.0) {
-                let d = abs(o.rgb - seen);
+                let d = abs(o.rgb - seen) * select(f.graze_column, 1.0, in_row);
                 most = max(most, max(d.x, max(d.y, d.z)));
+                if (!in_row) {
+                    sum += o.rgb;
+                    n += 1.0;
+                }
             }
         }
     }
-    return most > GRAZE_APART;
+    if (n > 0.0) {
+        let d = abs(seen - sum / n) * select(0.5, 1.0, n > 1.5);
+        most = max(most, max(d.x, max(d.y, d.z)));
+    }
+    return most > f.graze_apart;
 }
 
 // Whether this invocation's one-ray pixel is a grazing pixel whose picture differs from a

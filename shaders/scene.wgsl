@@ -60,20 +60,26 @@ fn ground_at(uv: vec2<f32>) -> vec4<f32> {
 const TERRAIN_STEPS: u32 = 48u;
 const TERRAIN_REFINE: u32 = 6u;
 
+// Where the last `terrain_hit` that met the terrain was last above it: the distance its
+// bisection left below the hit. A ray above that one, from the same camera, is above the
+// terrain there too (march.wgsl `terrain_share`).
+var<private> terrain_clear_to: f32 = 0.0;
+
 // Distance along the ray from altitude h (zenith cosine mu to the local up, direction d from
-// origin o) to the terrain, or -1 where it meets none before `t_max`. Marched as a height
-// field below the highest terrain, in steps growing with distance, then bisected.
-fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
+// origin o) to the terrain, or -1 where it meets none between `t_min` and `t_max`. Marched as a
+// height field below the highest terrain, in steps growing with distance, then bisected
+// (`refine`; a caller that asks only whether it meets the terrain needs no bisection).
+fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_min: f32, t_max: f32, refine: bool) -> f32 {
     if (sh.terrain_on == 0u) {
         return -1.0;
     }
     let top = shell_hits(h, mu, sh.ground_top_m + 1.0);
-    var t0 = 0.0;
+    var t0 = t_min;
     if (h > sh.ground_top_m + 1.0) {
         if (top.x > top.y || top.y < 0.0) {
             return -1.0;
         }
-        t0 = max(top.x, 0.0);
+        t0 = max(top.x, t_min);
     }
     // Below the top the ray leaves the terrain's shell at top.y (or runs on to t_max).
     var t1 = t_max;
@@ -97,8 +103,8 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
         }
         prev = t;
     }
-    if (hit < 0.0) {
-        return -1.0;
+    if (hit < 0.0 || !refine) {
+        return hit;
     }
     for (var k = 0u; k < TERRAIN_REFINE; k++) {
         let t = 0.5 * (lo + hit);
@@ -109,12 +115,18 @@ fn terrain_hit(o: vec3<f32>, h: f32, mu: f32, d: vec3<f32>, t_max: f32) -> f32 {
             lo = t;
         }
     }
+    terrain_clear_to = lo;
     return hit;
 }
 
 // Along v from the camera: x the distance to sea level (-1 where the ray misses the Earth), y
 // to the terrain before it (-1 where it meets none).
 fn ground_reach(v: vec3<f32>) -> vec2<f32> {
+    return reach_along(v, 0.0, true);
+}
+
+// `ground_reach`, the terrain looked for past `t_min` only, its hit bisected or not.
+fn reach_along(v: vec3<f32>, t_min: f32, refine: bool) -> vec2<f32> {
     let up = f.cam_up;
     let h = f.cam_alt_m;
     let mu = dot(v, up);
@@ -124,13 +136,14 @@ fn ground_reach(v: vec3<f32>) -> vec2<f32> {
         t_sea = max(ground.x, 0.0);
     }
     let t_far = select(2.0e6, t_sea, t_sea >= 0.0);
-    return vec2<f32>(t_sea, terrain_hit(up * (EARTH_R + h), h, mu, v, t_far));
+    return vec2<f32>(t_sea, terrain_hit(up * (EARTH_R + h), h, mu, v, t_min, t_far, refine));
 }
 
-// Whether the camera's ray along v meets the terrain before the sea: which side of a
-// mountain's silhouette it passes (march.wgsl `terrain_share`).
-fn meets_terrain(v: vec3<f32>) -> bool {
-    return ground_reach(v).y >= 0.0;
+// Whether the camera's ray along v meets the terrain before the sea, past `t_min` (where the
+// caller knows it is above it): which side of a mountain's silhouette it passes (march.wgsl
+// `terrain_share`).
+fn meets_terrain(v: vec3<f32>, t_min: f32) -> bool {
+    return reach_along(v, t_min, false).y >= 0.0;
 }
 
 // The terrain's normal at p from the height field's slope over about a kilometre.

@@ -140,9 +140,11 @@ crate::gpu_struct! {
         pub cell_drift_high: [f32; 4],
         /// East and north at the region's centre (unit ECEF vectors): the cells' plane.
         pub region_east: [f32; 3],
-        pub _pad3: f32,
+        /// MarchParams::graze_apart.
+        pub graze_apart: f32,
         pub region_north_dir: [f32; 3],
-        pub _pad4: f32,
+        /// MarchParams::graze_column.
+        pub graze_column: f32,
     }
 }
 
@@ -487,6 +489,8 @@ fn march(u: &mut FrameUniforms, inp: &FrameInput<'_>, p: &MarchParams) {
     u.light_steps = p.light_steps;
     u.light_step0_m = p.light_reach_m / (p.light_steps as f32 + 5.0);
     u.early_exit = p.early_exit;
+    u.graze_apart = p.graze_apart;
+    u.graze_column = p.graze_column;
     u.out_size = [inp.width as f32, inp.height as f32];
     u.frame_index = s.frame_index as f32;
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;

@@ -62,6 +62,8 @@ impl Preset {
                 aerial: true,
                 subset: 4,
                 graze: false,
+                graze_apart: 0.04,
+                graze_column: 1.0,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -78,6 +80,8 @@ impl Preset {
                 aerial: true,
                 subset: 4,
                 graze: true,
+                graze_apart: 0.015,
+                graze_column: 0.0,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -94,6 +98,8 @@ impl Preset {
                 aerial: true,
                 subset: 2,
                 graze: true,
+                graze_apart: 0.04,
+                graze_column: 1.0,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -110,6 +116,8 @@ impl Preset {
                 aerial: true,
                 subset: 1,
                 graze: true,
+                graze_apart: 0.04,
+                graze_column: 1.0,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -146,6 +154,14 @@ pub struct Shortcuts {
 
 fn on() -> bool {
     true
+}
+
+fn graze_apart() -> f32 {
+    0.04
+}
+
+fn graze_column() -> f32 {
+    1.0
 }
 
 impl Shortcuts {
@@ -194,14 +210,26 @@ pub struct MarchParams {
     pub subset: u32,
     /// A pixel whose ray grazes the layers (between the sea's limb and just above the
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
-    /// takes four more rays down its height where its one ray's picture differs from a
-    /// neighbour's on screen. On for `balanced`, `high` and `reference`; off for `fast`:
-    /// `balanced` views with the horizon in frame march 3–21 % more steps with it. Frames that
+    /// takes four more rays down its height where its one ray's picture stands out from its
+    /// neighbours' on screen (`graze_apart`, `graze_column`). On for `balanced`, `high` and
+    /// `reference`; off for `fast`: `balanced` views with the horizon in frame march 3–21 % more steps with it. Frames that
     /// march a subset of the pixels (reprojection) at the target's size go without
     /// (docs/footprint.md, "Grazing rays where the picture asks"); a march enlarged into its
     /// target (the window's render scale) takes them at every preset (render::frame::build).
     #[serde(default)]
     pub graze: bool,
+    /// How far a grazing pixel's picture must stand out on screen (after the tone curve, 0..1)
+    /// to take the extra rays: from a neighbour in its row, or down its column from its two
+    /// neighbours' mean (the picture's bend there: a line thinner than the pixel stands out
+    /// from both sides, a smooth gradient does not).
+    #[serde(default = "graze_apart")]
+    pub graze_apart: f32,
+    /// How much a column neighbour's own distance counts beside the column's bend: 0, the bend
+    /// alone (`balanced`, at 0.015); 1, either neighbour too, the test before the bend (`high`
+    /// and `reference`, at 0.04: the bend at 0.015 made `high` above the clouds no faster than
+    /// the code before issue 30; docs/footprint.md, "Grazing rays where the picture bends").
+    #[serde(default = "graze_column")]
+    pub graze_column: f32,
     pub shortcuts: Shortcuts,
 }
 
