@@ -856,6 +856,33 @@ fn a_mountain_silhouette_shows_what_its_pixels_cover() {
     );
 }
 
+/// A grazing pixel on a smooth gradient down its column (the horizon's haze over the plateau,
+/// the bench's over-terrain scene) takes no extra rays: `balanced`'s test asks how far a pixel
+/// stands out from its column neighbours' mean, not from either of them (march.wgsl
+/// `differs_from_neighbours`, `MarchParams::graze_column`), and its centre ray on a gradient
+/// is already the pixel's mean. At 320×180 (lavapipe) the bend's test lists 1 632 pixels for
+/// more rays (the limb's and silhouettes' split pixels included), the same threshold with
+/// either column neighbour 2 952; with the shader's `graze_column` ignored the test fails.
+#[test]
+fn a_smooth_horizon_takes_no_grazing_rays() {
+    let sample = stratus::scenes::terrain();
+    let map = sample.map().expect("the sample ingests");
+    let scene = sample.scene("over-terrain").expect("the bench's scene");
+    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let bend = Settings::new(Preset::Balanced, time);
+    assert_eq!(bend.march.graze_column, 0.0, "balanced asks the bend alone");
+    let mut either = bend.clone();
+    either.march.graze_column = 1.0;
+    let (w, h) = (320, 180);
+    let by_bend = render(&map, scene.view, w, h, &bend).stats.reworked;
+    let by_either = render(&map, scene.view, w, h, &either).stats.reworked;
+    eprintln!("pixels marched again: {by_bend} by the bend, {by_either} by either neighbour");
+    assert!(
+        by_bend > 0 && (by_bend as f64) < 0.85 * by_either as f64,
+        "the bend's test marched {by_bend} pixels again, either neighbour's {by_either}"
+    );
+}
+
 /// The same for a far deck's top seen edge-on (the bench's inside-layer scene from 4.5 km: the
 /// rows just under the horizontal): a pixel whose ray grazes the layers takes four more rays
 /// down its height where its picture differs from a neighbour's (march.wgsl `needs_grazing_rays`),

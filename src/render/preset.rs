@@ -212,10 +212,11 @@ pub struct MarchParams {
     /// horizontal, where a far deck's top or base crosses a row as a line thinner than a pixel)
     /// takes four more rays down its height where its one ray's picture stands out from its
     /// neighbours' on screen (`graze_apart`, `graze_column`). On for `balanced`, `high` and
-    /// `reference`; off for `fast`: `balanced` views with the horizon in frame march 3–21 % more steps with it. Frames that
-    /// march a subset of the pixels (reprojection) at the target's size go without
-    /// (docs/footprint.md, "Grazing rays where the picture asks"); a march enlarged into its
-    /// target (the window's render scale) takes them at every preset (render::frame::build).
+    /// `reference`; off for `fast`, for its cost in the views with the horizon in frame
+    /// (docs/footprint.md has it, session by session). Frames that march a subset of the
+    /// pixels (reprojection) at the target's size go without (docs/footprint.md, "Grazing rays
+    /// where the picture asks"); a march enlarged into its target (the window's render scale)
+    /// takes them at every preset (render::frame::build).
     #[serde(default)]
     pub graze: bool,
     /// How far a grazing pixel's picture must stand out on screen (after the tone curve, 0..1)
