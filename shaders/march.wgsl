@@ -657,8 +657,13 @@ struct ReworkEntry {
 struct ReworkList {
     // `rework`'s workgroups: copied into its indirect dispatch (render::march).
     groups: atomic<u32>,
-    // Entries left; past the list's length a pixel keeps its first ray.
+    // Entries taken; past the list's length a pixel keeps its first ray.
     count: atomic<u32>,
+    // Of them the grazing pixels', from the list's start, `GRAZE_EXTRA` invocations each, and
+    // the split pixels', from its end, one invocation each: a split pixel's one extra ray does
+    // not hold three idle lanes beside it.
+    grazes: atomic<u32>,
+    splits: atomic<u32>,
     entries: array<ReworkEntry>,
 };
 
@@ -667,14 +672,28 @@ struct ReworkList {
 // `rework`'s workgroup: a multiple of `GRAZE_EXTRA`, so a pixel's jobs share one.
 const REWORK_GROUP: u32 = 64u;
 
-// Appends the invocation's pixel (its cell, its first ray) to the list, and a workgroup to
-// `rework`'s dispatch at every `REWORK_GROUP / GRAZE_EXTRA`-th entry.
+// Appends the invocation's pixel (its cell, its first ray) to the list: a grazing pixel's at
+// the next slot from the start, a split pixel's from the end; and a workgroup to `rework`'s
+// dispatch at every `REWORK_GROUP / GRAZE_EXTRA`-th grazing entry and every `REWORK_GROUP`-th
+// split one (its grazing workgroups first, then its split ones).
 fn leave_for_rework(cell: vec2<u32>, s: Shaded) {
-    let slot = atomicAdd(&rework_list.count, 1u);
-    if (slot < arrayLength(&rework_list.entries)) {
-        let rays = select(GRAZE_EXTRA, 1u, !s.one_ray);
-        rework_list.entries[slot] = ReworkEntry(s.cloud, s.scene, s.seen, s.share, s.reach, cell.x | (cell.y << 16u), rays);
-        if (slot % (REWORK_GROUP / GRAZE_EXTRA) == 0u) {
+    let len = arrayLength(&rework_list.entries);
+    if (atomicAdd(&rework_list.count, 1u) >= len) {
+        return;
+    }
+    let split = !s.one_ray;
+    let rays = select(GRAZE_EXTRA, 1u, split);
+    let en = ReworkEntry(s.cloud, s.scene, s.seen, s.share, s.reach, cell.x | (cell.y << 16u), rays);
+    if (split) {
+        let j = atomicAdd(&rework_list.splits, 1u);
+        rework_list.entries[len - 1u - j] = en;
+        if (j % REWORK_GROUP == 0u) {
+            atomicAdd(&rework_list.groups, 1u);
+        }
+    } else {
+        let j = atomicAdd(&rework_list.grazes, 1u);
+        rework_list.entries[j] = en;
+        if (j % (REWORK_GROUP / GRAZE_EXTRA) == 0u) {
             atomicAdd(&rework_list.groups, 1u);
         }
     }
@@ -868,19 +887,26 @@ fn main(
     }
 }
 
-// The pixels `main` left (`ReworkList`), `GRAZE_EXTRA` invocations each, one a ray (a split
-// pixel's one extra ray leaves three idle): a SIMD lane group then marches neighbouring rays of
-// two pixels, not one ray each of pixels far apart, whose step counts differ more. The pixel's
-// first invocation averages them.
+// The pixels `main` left (`ReworkList`), one invocation a ray: a grazing pixel's
+// `GRAZE_EXTRA` side by side in the first workgroups (a SIMD lane group then marches
+// neighbouring rays of two pixels, not one ray each of pixels far apart, whose step counts
+// differ more), a split pixel's one in those after them. The pixel's first invocation averages
+// them.
 @compute @workgroup_size(REWORK_GROUP, 1, 1)
 fn rework(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
     load_frame();
-    let slot = id.x / GRAZE_EXTRA;
-    let k = id.x % GRAZE_EXTRA;
-    let live = slot < min(atomicLoad(&rework_list.count), arrayLength(&rework_list.entries));
+    let len = arrayLength(&rework_list.entries);
+    let grazes = atomicLoad(&rework_list.grazes);
+    let per_group = REWORK_GROUP / GRAZE_EXTRA;
+    let graze_lanes = (grazes + per_group - 1u) / per_group * REWORK_GROUP;
+    let on_grazes = id.x < graze_lanes;
+    let j = id.x - graze_lanes;
+    let slot = select(len - 1u - min(j, len - 1u), id.x / GRAZE_EXTRA, on_grazes);
+    let k = select(0u, id.x % GRAZE_EXTRA, on_grazes);
+    let live = select(j < atomicLoad(&rework_list.splits), slot < grazes, on_grazes);
     var en = ReworkEntry(vec4<f32>(0.0), vec4<f32>(0.0), vec3<f32>(0.0), 0.0, vec2<f32>(0.0), 0u, 0u);
     if (live) {
         en = rework_list.entries[slot];

@@ -115,15 +115,17 @@ pub(crate) const REWORK_ENTRY: u64 = 64;
 /// (`GRAZE_EXTRA`, one extra ray each).
 pub(crate) const REWORK_GROUP: u32 = 64;
 pub(crate) const GRAZE_EXTRA: u32 = 4;
-/// The rework list's entries one workgroup of its dispatch takes.
+/// The rework list's grazing entries one workgroup of its dispatch takes (its split entries take
+/// `REWORK_GROUP`).
 const REWORK_PER_GROUP: u64 = (REWORK_GROUP / GRAZE_EXTRA) as u64;
 
 /// The list of pixels a `width`×`height` march leaves for its second dispatch (march.wgsl
 /// `ReworkList`): those the limb or a silhouette splits, and the grazing pixels that take more
 /// rays. Room for a quarter of the pixels (at least 4096, at most what one dispatch's
-/// workgroups and one binding hold); a pixel past it keeps its first ray.
+/// workgroups and one binding hold: the grazing and the split entries' last workgroups may each
+/// be part-filled, one more than the entries fill); a pixel past it keeps its first ray.
 pub fn rework_buffer(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
-    let most = (65_535 * REWORK_PER_GROUP).min((128 << 20) / REWORK_ENTRY - 1);
+    let most = (65_534 * REWORK_PER_GROUP).min((128 << 20) / REWORK_ENTRY - 1);
     let entries = (width as u64 * height as u64).div_ceil(4).clamp(4096, most);
     gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("rework list"),
