@@ -20,7 +20,7 @@ struct Frame {
     cam_right: vec3<f32>,
     aspect: f32,                // width / height
     cam_view_up: vec3<f32>,
-    _pad0: u32,
+    graze_from: f32,            // where a grazing pixel's extra rays start (march.wgsl `extra_ray`)
     noise_origin: vec3<f32>,    // camera ECEF modulo the shape-noise period (m)
     shape_period_m: f32,
     sun_dir: vec3<f32>,         // toward the Sun (ECEF)

@@ -21,6 +21,13 @@ var<private> far_m: f32;
 
 // The opacity-weighted distance (m) of the cloud the last march() saw (0 where none).
 var<private> cloud_dist: f32;
+// Where the last march() first read the cloud's noise (m; 1e9 where it never did): before
+// that its samples were clear by the map alone (below, above or between the drawn layers,
+// outside their cover), not by the noise, and a ray a fraction of a pixel beside it is clear
+// there too (`extra_ray`).
+var<private> noise_first: f32 = 1e9;
+// Where the next march() starts along its ray (m): 0, or a grazing pixel's extra ray's start.
+var<private> march_from: f32 = 0.0;
 
 var<workgroup> wg_count: array<atomic<u32>, N_COUNTERS>;
 
@@ -306,7 +313,11 @@ fn next_cloud(walk: ptr<function, Walk>, r: Ray, mu: f32, origin: vec3<f32>, jit
         step_dz = abs(slope * w.dt);
         // The one density call of the loop (a second call site, as a bisection loop of its
         // own, doubled the march's time on lavapipe, which runs every call site for all lanes).
+        let noised_before = local_count[C_DENSITY];
         let s_e = density_uv(uv_e, h_e, r.np + r.d * te, detail) * f.extinction;
+        if (local_count[C_DENSITY] != noised_before) {
+            noise_first = min(noise_first, te);
+        }
         if (w.refine > 0u) {
             w.refine -= 1u;
             if (s_e > 0.0) {
@@ -453,10 +464,13 @@ fn through_air(r: Ray, mu: f32, cloud: vec3<f32>, alpha: f32, dist: f32) -> vec3
 fn march(r: Ray, jitter: f32, ground_t: f32) -> vec4<f32> {
     cloud_dist = 0.0;
     let mu = dot(r.d, r.up);
-    let span = segments(r, mu, ground_t);
+    var span = segments(r, mu, ground_t);
+    noise_first = 1e9;
     if (!span.hit) {
         return vec4<f32>(0.0);
     }
+    span.seg.x = max(span.seg.x, march_from);
+    span.seg2.x = max(span.seg2.x, march_from);
     let sun_key = f.sun_is_key != 0u;
     let cos_t = dot(r.d, select(f.moon_dir, f.sun_dir, sun_key));
     let view = ViewPhase(cos_t, phase(cos_t, f.hg_g), remap(cos_t, -1.0, 1.0, 0.0, 1.0));
@@ -646,7 +660,9 @@ struct ReworkEntry {
     c: vec4<f32>,
     back: vec4<f32>,
     seen: vec3<f32>,
-    share: f32,
+    // A split pixel's upper part's share; a grazing pixel's (whose share is 1) its centre
+    // ray's `noise_first`, where its extra rays start from (`extra_ray`).
+    share_or_from: f32,
     reach: vec2<f32>,
     // The invocation's subset cell, x | y << 16.
     cell: u32,
@@ -683,7 +699,9 @@ fn leave_for_rework(cell: vec2<u32>, s: Shaded) {
     }
     let split = !s.one_ray;
     let rays = select(GRAZE_EXTRA, 1u, split);
-    let en = ReworkEntry(s.cloud, s.scene, s.seen, s.share, s.reach, cell.x | (cell.y << 16u), rays);
+    // `noise_first` is still the centre ray's: nothing has marched since.
+    let share_or_from = select(noise_first, s.share, split);
+    let en = ReworkEntry(s.cloud, s.scene, s.seen, share_or_from, s.reach, cell.x | (cell.y << 16u), rays);
     if (split) {
         let j = atomicAdd(&rework_list.splits, 1u);
         rework_list.entries[len - 1u - j] = en;
@@ -703,13 +721,22 @@ fn leave_for_rework(cell: vec2<u32>, s: Shaded) {
 // at the step's other half phase; a grazing pixel's at evenly spaced heights (±1/5, ±2/5 of it
 // from the centre, whose ray it has), each its own phase of the step. No limb or silhouette
 // crosses a grazing pixel (it would have been split), so its rays all meet the terrain or all
-// pass it: past it, the centre's reach is theirs.
+// pass it: past it, the centre's reach is theirs. A grazing pixel's extra rays start past the
+// air its centre ray found clear by the map alone (`f.graze_from`): along the horizon under an
+// overcast that is most of their way, and they cost twice a first ray (docs/footprint.md).
 fn extra_ray(px: vec2<f32>, jitter: f32, k: u32, en: ReworkEntry, e: f32) -> OneRay {
     let split = en.rays == 1u;
     let n = f32(GRAZE_EXTRA + 1u);
     let graze_y = select(-1.0, 1.0, (k & 1u) == 1u) * f32((k >> 1u) + 1u) / n;
-    let y = select(graze_y, 0.5 * en.share, split);
+    let y = select(graze_y, 0.5 * en.share_or_from, split);
     let phase = select(fract(jitter + f32(k + 1u) / n), fract(jitter + 0.5), split);
+    // A grazing pixel's extra rays skip the air its centre ray found clear by the map alone, where
+    // that is more than a longest step (a shorter skip saves nothing and moves their samples).
+    // The presets' 0.5 (`f.graze_from`): a ray a fifth of a pixel higher enters a layer's band
+    // earlier than the centre, at a grazing angle by as much as tens of per cent; at half the
+    // distance none enters before it starts.
+    let from_t = f.graze_from * en.share_or_from;
+    march_from = select(0.0, from_t, !split && en.share_or_from < 1e8 && from_t >= f.step_max_m);
     return one_ray(px + vec2<f32>(0.0, y), phase, en.reach, split || en.reach.y >= 0.0, e);
 }
 
@@ -724,8 +751,8 @@ var<workgroup> wg_ray_b: array<vec4<f32>, REWORK_GROUP>;
 fn reworked(en: ReworkEntry, first: u32) -> Shaded {
     let e = shown_at();
     let split = en.rays == 1u;
-    let w0 = select(1.0, en.share, split);
-    let wk = select(1.0, 1.0 - en.share, split);
+    let w0 = select(1.0, en.share_or_from, split);
+    let wk = select(1.0, 1.0 - en.share_or_from, split);
     var c = w0 * en.c;
     var bg = w0 * en.back.rgb;
     var shown = w0 * en.seen;

@@ -42,7 +42,8 @@ crate::gpu_struct! {
         /// Width / height.
         pub aspect: f32,
         pub cam_view_up: [f32; 3],
-        pub _pad0: u32,
+        /// MarchParams::graze_from.
+        pub graze_from: f32,
         /// The camera's ECEF position modulo the shape-noise period.
         pub noise_origin: [f32; 3],
         pub shape_period_m: f32,
@@ -491,6 +492,7 @@ fn march(u: &mut FrameUniforms, inp: &FrameInput<'_>, p: &MarchParams) {
     u.early_exit = p.early_exit;
     u.graze_apart = p.graze_apart;
     u.graze_column = p.graze_column;
+    u.graze_from = p.graze_from;
     u.out_size = [inp.width as f32, inp.height as f32];
     u.frame_index = s.frame_index as f32;
     u.march_scale = inp.width as f32 / inp.target_width.max(1) as f32;

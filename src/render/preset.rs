@@ -64,6 +64,7 @@ impl Preset {
                 graze: false,
                 graze_apart: 0.04,
                 graze_column: 1.0,
+                graze_from: 0.5,
                 shortcuts: on,
             },
             Preset::Balanced => MarchParams {
@@ -82,6 +83,7 @@ impl Preset {
                 graze: true,
                 graze_apart: 0.015,
                 graze_column: 0.0,
+                graze_from: 0.5,
                 shortcuts: on,
             },
             Preset::High => MarchParams {
@@ -100,6 +102,7 @@ impl Preset {
                 graze: true,
                 graze_apart: 0.04,
                 graze_column: 1.0,
+                graze_from: 0.5,
                 shortcuts: on,
             },
             Preset::Reference => MarchParams {
@@ -118,6 +121,7 @@ impl Preset {
                 graze: true,
                 graze_apart: 0.04,
                 graze_column: 1.0,
+                graze_from: 0.5,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -162,6 +166,10 @@ fn graze_apart() -> f32 {
 
 fn graze_column() -> f32 {
     1.0
+}
+
+fn graze_from() -> f32 {
+    0.5
 }
 
 impl Shortcuts {
@@ -231,6 +239,14 @@ pub struct MarchParams {
     /// the code before issue 30; docs/footprint.md, "Grazing rays where the picture bends").
     #[serde(default = "graze_column")]
     pub graze_column: f32,
+    /// Where a grazing pixel's extra rays start: this share of the distance at which its centre
+    /// ray first read the cloud's noise, before which the map alone left its air clear (below,
+    /// above or between the drawn layers, outside their cover). Along the horizon under an
+    /// overcast that is most of their way (docs/footprint.md, "The extra rays past the clear
+    /// air"). 0 marches them from the camera; above 1 they would start past cloud the centre
+    /// ray met.
+    #[serde(default = "graze_from")]
+    pub graze_from: f32,
     pub shortcuts: Shortcuts,
 }
 
