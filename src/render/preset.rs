@@ -121,7 +121,9 @@ impl Preset {
                 graze: true,
                 graze_apart: 0.04,
                 graze_column: 1.0,
-                graze_from: 0.5,
+                // The standard the others are scored against marches every ray from the
+                // camera, as it takes no other shortcut.
+                graze_from: 0.0,
                 shortcuts: Shortcuts {
                     early_exit: false,
                     variable_step: false,
@@ -243,8 +245,8 @@ pub struct MarchParams {
     /// ray first read the cloud's noise, before which the map alone left its air clear (below,
     /// above or between the drawn layers, outside their cover). Along the horizon under an
     /// overcast that is most of their way (docs/footprint.md, "The extra rays past the clear
-    /// air"). 0 marches them from the camera; above 1 they would start past cloud the centre
-    /// ray met.
+    /// air"). 0 marches them from the camera (`reference`); above 1 they would start past cloud
+    /// the centre ray met.
     #[serde(default = "graze_from")]
     pub graze_from: f32,
     pub shortcuts: Shortcuts,
