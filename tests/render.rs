@@ -699,7 +699,11 @@ fn bytes_differ(a: &Output, b: &Output) -> usize {
 
 /// A scene of the synthetic sample: its map, view and time.
 fn bench_scene(name: &str) -> (CloudMap, View, DateTime<Utc>) {
-    let sample = stratus::scenes::synthetic();
+    sample_scene(stratus::scenes::synthetic(), name)
+}
+
+/// A scene of `sample`: its map, view and time.
+fn sample_scene(sample: stratus::scenes::Sample, name: &str) -> (CloudMap, View, DateTime<Utc>) {
     let map = sample.map().expect("the sample ingests");
     let scene = sample.scene(name).expect("the bench's scene");
     let time = scene.time.or(map.meta.source.valid_time).expect("a time");
@@ -865,17 +869,14 @@ fn a_mountain_silhouette_shows_what_its_pixels_cover() {
 /// either column neighbour 2 952; with the shader's `graze_column` ignored the test fails.
 #[test]
 fn a_smooth_horizon_takes_no_grazing_rays() {
-    let sample = stratus::scenes::terrain();
-    let map = sample.map().expect("the sample ingests");
-    let scene = sample.scene("over-terrain").expect("the bench's scene");
-    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let (map, view, time) = sample_scene(stratus::scenes::terrain(), "over-terrain");
     let bend = Settings::new(Preset::Balanced, time);
     assert_eq!(bend.march.graze_column, 0.0, "balanced asks the bend alone");
     let mut either = bend.clone();
     either.march.graze_column = 1.0;
     let (w, h) = (320, 180);
-    let by_bend = render(&map, scene.view, w, h, &bend).stats.reworked;
-    let by_either = render(&map, scene.view, w, h, &either).stats.reworked;
+    let by_bend = render(&map, view, w, h, &bend).stats.reworked;
+    let by_either = render(&map, view, w, h, &either).stats.reworked;
     eprintln!("pixels marched again: {by_bend} by the bend, {by_either} by either neighbour");
     assert!(
         by_bend > 0 && (by_bend as f64) < 0.85 * by_either as f64,
@@ -909,16 +910,13 @@ fn a_grazing_deck_top_shows_what_its_pixels_cover() {
 /// picture would move more than that.
 #[test]
 fn grazing_rays_skip_only_the_air_the_map_leaves_clear() {
-    let sample = stratus::scenes::terrain();
-    let map = sample.map().expect("the sample ingests");
-    let scene = sample.scene("over-terrain").expect("the bench's scene");
-    let time = scene.time.or(map.meta.source.valid_time).expect("a time");
+    let (map, view, time) = sample_scene(stratus::scenes::terrain(), "over-terrain");
     let half = Settings::new(Preset::Balanced, time);
     assert_eq!(half.march.graze_from, 0.5, "balanced starts them half-way");
     let with = |from: f32| {
         let mut s = half.clone();
         s.march.graze_from = from;
-        render(&map, scene.view, 320, 180, &s)
+        render(&map, view, 320, 180, &s)
     };
     let (skip, whole, past) = (with(0.5), with(0.0), with(3.0));
     let moved = |o: &Output| -> (usize, u8) {
