@@ -21,11 +21,12 @@ var<private> far_m: f32;
 
 // The opacity-weighted distance (m) of the cloud the last march() saw (0 where none).
 var<private> cloud_dist: f32;
-// Where the last march() first read the cloud's noise (m; 1e9 where it never did): before
+// Where the last march() first read the cloud's noise (m; `NO_NOISE` where it never did): before
 // that its samples were clear by the map alone (below, above or between the drawn layers,
 // outside their cover), not by the noise, and a ray a fraction of a pixel beside it is clear
 // there too (`extra_ray`).
-var<private> noise_first: f32 = 1e9;
+const NO_NOISE: f32 = 1e9;
+var<private> noise_first: f32 = NO_NOISE;
 // Where the next march() starts along its ray (m): 0, or a grazing pixel's extra ray's start.
 var<private> march_from: f32 = 0.0;
 
@@ -465,7 +466,7 @@ fn march(r: Ray, jitter: f32, ground_t: f32) -> vec4<f32> {
     cloud_dist = 0.0;
     let mu = dot(r.d, r.up);
     var span = segments(r, mu, ground_t);
-    noise_first = 1e9;
+    noise_first = NO_NOISE;
     if (!span.hit) {
         return vec4<f32>(0.0);
     }
@@ -732,11 +733,12 @@ fn extra_ray(px: vec2<f32>, jitter: f32, k: u32, en: ReworkEntry, e: f32) -> One
     let phase = select(fract(jitter + f32(k + 1u) / n), fract(jitter + 0.5), split);
     // A grazing pixel's extra rays skip the air its centre ray found clear by the map alone, where
     // that is more than a longest step (a shorter skip saves nothing and moves their samples).
-    // The presets' 0.5 (`f.graze_from`): a ray a fifth of a pixel higher enters a layer's band
-    // earlier than the centre, at a grazing angle by as much as tens of per cent; at half the
-    // distance none enters before it starts.
+    // `balanced` and `high` ask 0.5 (`f.graze_from`; `reference` 0): a ray a fifth of a pixel
+    // higher enters a layer's band earlier than the centre, at a grazing angle by as much as
+    // tens of per cent; at half the distance none enters before it starts.
     let from_t = f.graze_from * en.share_or_from;
-    march_from = select(0.0, from_t, !split && en.share_or_from < 1e8 && from_t >= f.step_max_m);
+    let read = en.share_or_from < NO_NOISE;
+    march_from = select(0.0, from_t, !split && read && from_t >= f.step_max_m);
     return one_ray(px + vec2<f32>(0.0, y), phase, en.reach, split || en.reach.y >= 0.0, e);
 }
 
